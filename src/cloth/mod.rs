@@ -1,0 +1,221 @@
+//! Mass-spring cloth and soft bodies: model, solvers, and the bake loop that records frames.
+//!
+//! Data flows one way: [`ClothModel`] (particles, springs, masses, pins) → [`ReducedSystem`]
+//! (pins removed, unknowns ordered) → a [`StepSolver`] → [`simulate`] records a [`FrameCache`].
+
+pub mod factor;
+pub mod fast;
+pub mod model;
+pub mod pins;
+pub mod preset;
+pub mod springs;
+pub mod system;
+
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+
+pub use fast::FastSolver;
+pub use model::ClothModel;
+pub use system::{ReducedSystem, StepParams};
+
+use crate::error::{Error, Result};
+
+/// What one solver step reports.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct StepStats {
+    /// Iterations used (local/global iterations, or Newton iterations).
+    pub iterations: usize,
+    /// Final ‖∇g‖ relative to the free particles' weight (dimensionless).
+    pub residual: f64,
+    /// False when an iterative solver stopped at its cap before its tolerance.
+    pub converged: bool,
+}
+
+/// A time integrator advancing the free particles of a [`ReducedSystem`] by one step.
+pub trait StepSolver {
+    /// The system being solved.
+    fn system(&self) -> &ReducedSystem;
+
+    /// Advances positions `x` (m) and velocities `v` (m/s), both free particles in solver order,
+    /// by one time step.
+    ///
+    /// # Errors
+    /// A solver may fail when its linear system cannot be factored.
+    fn step(&mut self, x: &mut [DVec3], v: &mut [DVec3]) -> Result<StepStats>;
+}
+
+/// Which solver a bake uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SolverKind {
+    /// Local/global fast mass-spring with a prefactored matrix ([`FastSolver`]).
+    Fast,
+}
+
+/// Settings of a bake.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BakeParams {
+    /// Frames to simulate after the initial state (frame 0).
+    pub frames: usize,
+    /// Frames per second of the output animation.
+    pub fps: f64,
+    /// Solver steps per frame; the time step is 1 / (fps · substeps) seconds.
+    pub substeps: usize,
+    /// Mass-proportional damping in 1/s.
+    pub damping: f64,
+    /// Gravity in m/s².
+    pub gravity: DVec3,
+    /// The solver.
+    pub solver: SolverKind,
+    /// Local/global iterations per step (fast solver).
+    pub iterations: usize,
+}
+
+impl BakeParams {
+    /// Time step h in seconds.
+    pub fn time_step(&self) -> f64 {
+        1.0 / (self.fps * self.substeps as f64)
+    }
+
+    /// The step constants for the solvers.
+    pub fn step_params(&self) -> StepParams {
+        StepParams { time_step: self.time_step(), damping: self.damping, gravity: self.gravity }
+    }
+}
+
+/// Recorded particle positions for frames 0..=N.
+///
+/// Layout: frame-major, `positions[frame * particles + particle]`, metres, as `f32` (what the
+/// exporters write).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameCache {
+    particles: usize,
+    positions: Vec<Vec3>,
+}
+
+impl FrameCache {
+    /// An empty cache for `particles` particles.
+    pub fn new(particles: usize) -> Self {
+        FrameCache { particles, positions: Vec::new() }
+    }
+
+    /// Appends a frame.
+    ///
+    /// # Panics
+    /// When `frame.len()` differs from the particle count.
+    pub fn push(&mut self, frame: &[DVec3]) {
+        assert_eq!(frame.len(), self.particles, "frame size");
+        self.positions.extend(frame.iter().map(|p| p.as_vec3()));
+    }
+
+    /// Number of recorded frames (the initial state included).
+    pub fn frame_count(&self) -> usize {
+        self.positions.len().checked_div(self.particles).unwrap_or(0)
+    }
+
+    /// Number of particles per frame.
+    pub fn particle_count(&self) -> usize {
+        self.particles
+    }
+
+    /// Positions of frame `k`.
+    ///
+    /// # Panics
+    /// When `k >= frame_count()`.
+    pub fn frame(&self, k: usize) -> &[Vec3] {
+        &self.positions[k * self.particles..(k + 1) * self.particles]
+    }
+}
+
+/// What a bake produced.
+#[derive(Debug, Clone)]
+pub struct Simulation {
+    /// Positions of every particle at frames 0..=N.
+    pub cache: FrameCache,
+    /// Per-frame solver figures (frames 1..=N): iterations summed over substeps, worst residual.
+    pub frames: Vec<StepStats>,
+    /// Wall time spent stepping, seconds.
+    pub seconds: f64,
+}
+
+/// Builds the solver named by `params` for `model`.
+///
+/// # Errors
+/// When the system cannot be ordered or factored.
+pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn StepSolver>> {
+    let sys = ReducedSystem::new(model, params.step_params())?;
+    Ok(match params.solver {
+        SolverKind::Fast => Box::new(FastSolver::new(sys, params.iterations)?),
+    })
+}
+
+/// Simulates `params.frames` frames of `model` with `solver`, calling `progress(frame)` after
+/// each frame.
+///
+/// # Errors
+/// [`Error::Diverged`] naming the first frame with non-finite or exploding positions; solver
+/// errors as they come.
+pub fn simulate(
+    model: &ClothModel,
+    solver: &mut dyn StepSolver,
+    params: &BakeParams,
+    progress: &mut dyn FnMut(usize),
+) -> Result<Simulation> {
+    let start = Instant::now();
+    let mut all = model.positions().to_vec();
+    let mut cache = FrameCache::new(all.len());
+    cache.push(&all);
+    let sys = solver.system();
+    let mut x = sys.gather(&all);
+    let mut v = vec![DVec3::ZERO; x.len()];
+    let guard = DivergenceGuard::new(model, params);
+    let mut frames = Vec::with_capacity(params.frames);
+    for frame in 1..=params.frames {
+        let mut stats = StepStats { iterations: 0, residual: 0.0, converged: true };
+        for _ in 0..params.substeps {
+            let s = solver.step(&mut x, &mut v)?;
+            stats.iterations += s.iterations;
+            stats.residual = stats.residual.max(s.residual);
+            stats.converged &= s.converged;
+        }
+        guard.check(frame, &x, solver.system())?;
+        solver.system().scatter(&x, &mut all);
+        cache.push(&all);
+        frames.push(stats);
+        progress(frame);
+    }
+    Ok(Simulation { cache, frames, seconds: start.elapsed().as_secs_f64() })
+}
+
+/// Detects a simulation that has blown up: non-finite positions, or particles farther from the
+/// start than free fall plus a wide margin could take them.
+struct DivergenceGuard {
+    centre: DVec3,
+    radius: f64,
+}
+
+impl DivergenceGuard {
+    fn new(model: &ClothModel, params: &BakeParams) -> Self {
+        let (lo, hi) = model.mesh.bounds();
+        let duration = params.frames as f64 / params.fps;
+        let fall = 0.5 * params.gravity.length() * duration * duration;
+        DivergenceGuard { centre: (lo + hi) * 0.5, radius: 100.0 * ((hi - lo).length() + 1.0) + 2.0 * fall }
+    }
+
+    fn check(&self, frame: usize, x: &[DVec3], sys: &ReducedSystem) -> Result<()> {
+        for (i, p) in x.iter().enumerate() {
+            let particle = sys.particle_of[i];
+            if !p.is_finite() {
+                return Err(Error::Diverged { frame, reason: format!("non-finite position at particle {particle}") });
+            }
+            if p.distance(self.centre) > self.radius {
+                return Err(Error::Diverged {
+                    frame,
+                    reason: format!("particle {particle} flew {:.3e} m from the body's centre", p.distance(self.centre)),
+                });
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,129 @@
+//! The library's error type.
+//!
+//! Every variant carries what a user needs to fix the input: the file, the line or element, the
+//! option, and what was wrong. Messages are lowercase with no trailing period; the binary prints
+//! them behind `error:`.
+
+use std::path::PathBuf;
+
+/// Result alias used throughout the library.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong while loading, simulating or writing.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A file could not be opened, read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file involved.
+        path: PathBuf,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+    /// A file's content could not be understood.
+    #[error("{path}{}: {message}", location_suffix(*.line))]
+    Parse {
+        /// The file involved.
+        path: PathBuf,
+        /// One-based line number, when the format is line-oriented.
+        line: Option<usize>,
+        /// What was wrong.
+        message: String,
+    },
+    /// The input is readable but unusable (no faces, index out of range, non-finite value...).
+    #[error("{path}: {message}")]
+    InvalidInput {
+        /// The file (or preset name) involved.
+        path: PathBuf,
+        /// What was wrong, naming the element.
+        message: String,
+    },
+    /// A command-line option or scene-file key has an invalid value.
+    #[error("invalid value for {option}: {message}")]
+    InvalidOption {
+        /// The option, as the user spelled it (`--pin`, `--frames`...).
+        option: String,
+        /// What was wrong with the value, and the expected form.
+        message: String,
+    },
+    /// A pin specification selected no particle.
+    #[error("--pin {spec}: selects no particle{hint}")]
+    EmptyPin {
+        /// The pin specification as given.
+        spec: String,
+        /// Extra help (for example the mesh bounds), starting with "; ".
+        hint: String,
+    },
+    /// The simulation produced non-finite or exploding positions.
+    #[error(
+        "simulation diverged at frame {frame} ({reason}); try a smaller time step \
+         (more --substeps or a higher --fps), lower --stiffness, or more --iterations"
+    )]
+    Diverged {
+        /// The first frame whose state was unusable (1-based, frame 0 is the input pose).
+        frame: usize,
+        /// What was detected (for example "non-finite position at particle 12").
+        reason: String,
+    },
+    /// The sparse Cholesky factorisation failed (matrix not positive definite).
+    #[error("sparse factorisation failed: {0}")]
+    Factorisation(String),
+    /// A glTF document could not be loaded.
+    #[error("{path}: {source}")]
+    Gltf {
+        /// The file involved.
+        path: PathBuf,
+        /// The `gltf` crate's error.
+        source: gltf::Error,
+    },
+    /// A glTF document could not be serialised.
+    #[error("{path}: cannot serialise glTF JSON: {source}")]
+    Json {
+        /// The output file.
+        path: PathBuf,
+        /// The serialiser's error.
+        source: serde_json::Error,
+    },
+    /// An inverse-kinematics chain could not be built.
+    #[error("{0}")]
+    Chain(String),
+    /// An export could not be written because its data is inconsistent or too large.
+    #[error("{path}: {message}")]
+    Export {
+        /// The output file.
+        path: PathBuf,
+        /// What was wrong.
+        message: String,
+    },
+}
+
+fn location_suffix(line: Option<usize>) -> String {
+    line.map(|l| format!(":{l}")).unwrap_or_default()
+}
+
+impl Error {
+    /// Shorthand for [`Error::Io`].
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    /// Shorthand for [`Error::InvalidInput`].
+    pub fn invalid(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::InvalidInput {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+
+    /// Shorthand for [`Error::InvalidOption`].
+    pub fn option(option: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::InvalidOption {
+            option: option.into(),
+            message: message.into(),
+        }
+    }
+}

@@ -1,0 +1,74 @@
+//! Writing outputs so that a failed or interrupted run never leaves a partial file nor destroys an
+//! earlier export: each file goes to a temporary in its target folder and is renamed into place
+//! only when every file of the set has been written completely.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+/// Writes every (path, bytes) pair; all temporaries are complete before the first rename. On
+/// failure no target is touched and the temporaries are removed.
+///
+/// # Errors
+/// [`Error::Io`] naming the file that could not be written.
+pub fn write_all_atomically(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    let mut staged = Vec::with_capacity(files.len());
+    for (path, bytes) in files {
+        let dir = parent_dir(path);
+        if dir.is_dir() {
+            if path.is_dir() {
+                return Err(Error::io(path, std::io::Error::other("is a directory")));
+            }
+        } else {
+            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        }
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("output");
+        let mut tmp = tempfile::Builder::new()
+            .prefix(&format!(".{name}."))
+            .suffix(".tmp")
+            .tempfile_in(&dir)
+            .map_err(|e| Error::io(path, e))?;
+        tmp.write_all(bytes).and_then(|_| tmp.as_file().sync_data()).map_err(|e| Error::io(path, e))?;
+        staged.push((tmp, path));
+    }
+    for (tmp, path) in staged {
+        tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    }
+    Ok(())
+}
+
+/// Writes one file atomically.
+///
+/// # Errors
+/// As [`write_all_atomically`].
+pub fn write_atomically(path: &Path, bytes: Vec<u8>) -> Result<()> {
+    write_all_atomically(&[(path.to_path_buf(), bytes)])
+}
+
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_set_leaves_earlier_file_and_no_temporaries() {
+        let dir = tempfile::tempdir().unwrap();
+        let good = dir.path().join("a.gltf");
+        std::fs::write(&good, b"old").unwrap();
+        // The second target is a directory: the whole set must fail before any rename.
+        let blocked = dir.path().join("b.bin");
+        std::fs::create_dir(&blocked).unwrap();
+        let err = write_all_atomically(&[(good.clone(), b"new".to_vec()), (blocked, b"x".to_vec())]);
+        assert!(err.is_err());
+        assert_eq!(std::fs::read(&good).unwrap(), b"old");
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().ends_with(".tmp")).collect();
+        assert!(leftovers.is_empty(), "{leftovers:?}");
+    }
+}

@@ -1,0 +1,8 @@
+//! Writers for output files.
+
+pub mod atomic;
+pub mod gltf_doc;
+pub mod morph;
+
+pub use gltf_doc::{GltfBuilder, Written};
+pub use morph::{write_morph_gltf, Interpolation, MorphOptions};

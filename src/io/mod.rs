@@ -1,0 +1,5 @@
+//! Readers for input files.
+
+pub mod gltf_mesh;
+pub mod obj;
+pub mod tet;
