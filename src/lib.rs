@@ -5,6 +5,7 @@
 //! ([`export`]). Units are SI (metres, seconds, kilograms); glTF's frame is +Y up, right-handed.
 #![warn(missing_docs)]
 
+pub mod bake;
 pub mod cloth;
 pub mod error;
 pub mod export;

@@ -24,9 +24,13 @@ pub fn write_all_atomically(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
         }
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("output");
-        let mut tmp = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(".tmp")
+        let mut builder = tempfile::Builder::new();
+        let prefix = format!(".{name}.");
+        builder.prefix(&prefix).suffix(".tmp");
+        // Temporaries are private (0600) by default; an export is an ordinary file.
+        #[cfg(unix)]
+        builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
+        let mut tmp = builder
             .tempfile_in(&dir)
             .map_err(|e| Error::io(path, e))?;
         tmp.write_all(bytes).and_then(|_| tmp.as_file().sync_data()).map_err(|e| Error::io(path, e))?;

@@ -1,0 +1,360 @@
+//! A cloth bake from start to finish: load the body, build the model, simulate, export, report.
+//!
+//! [`ClothJob`] holds one field per `scenebake cloth` option; the command line and scene files
+//! both fill it, so they share one vocabulary.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::DVec3;
+
+use crate::cloth::model::{masses_from_area, masses_from_volume};
+use crate::cloth::pins::{pinned_flags, PinSpec};
+use crate::cloth::preset::{self, lab_cloth};
+use crate::cloth::springs::{surface_springs, volume_springs, SpringKind, SpringSet};
+use crate::cloth::{make_solver, simulate, BakeParams, ClothModel, SolverKind, StepStats};
+use crate::error::{Error, Result};
+use crate::export::{write_morph_gltf, Interpolation, MorphOptions};
+use crate::io::{gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
+use crate::mesh::Mesh;
+use crate::spec::{non_negative, positive};
+
+/// Where the body comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ClothSource {
+    /// An `.obj`, `.gltf`/`.glb` or `.tet` file (the `INPUT` argument).
+    File(PathBuf),
+    /// `--preset lab-cloth`: the labs' grid with `--resolution N` cells per side.
+    LabCloth {
+        /// Cells per side (N); the grid has (N+1)² particles.
+        resolution: u32,
+    },
+}
+
+/// Default values for meshes loaded from files (presets bring their own).
+pub mod defaults {
+    /// `--frames`.
+    pub const FRAMES: usize = 120;
+    /// `--fps`.
+    pub const FPS: f64 = 30.0;
+    /// `--stiffness`, N/m per spring.
+    pub const STIFFNESS: f64 = 1000.0;
+    /// `--bend-stiffness`, N/m per bending spring.
+    pub const BEND_STIFFNESS: f64 = 2.0;
+    /// `--damping`, 1/s.
+    pub const DAMPING: f64 = 0.5;
+    /// `--density` for surfaces, kg/m² (a light cotton).
+    pub const AREAL_DENSITY: f64 = 0.2;
+    /// `--density` for `.tet` volumes, kg/m³ (a soft foam).
+    pub const VOLUME_DENSITY: f64 = 50.0;
+    /// `--gravity`, m/s².
+    pub const GRAVITY: [f64; 3] = [0.0, -9.81, 0.0];
+    /// `--iterations` of the fast solver per step.
+    pub const ITERATIONS: usize = 10;
+}
+
+/// One cloth bake. `None` means "the default": the preset's value for presets, else
+/// [`defaults`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClothJob {
+    /// `INPUT` or `--preset`.
+    pub source: ClothSource,
+    /// `--object NAME`: one object or group of an OBJ.
+    pub object: Option<String>,
+    /// `--mesh NAME`: one mesh of a glTF.
+    pub mesh: Option<String>,
+    /// `-o FILE`: `.glb`, or `.gltf` with a `.bin` beside it.
+    pub output: PathBuf,
+    /// `--frames N`: frames after the initial state.
+    pub frames: Option<usize>,
+    /// `--fps F`.
+    pub fps: Option<f64>,
+    /// `--substeps S`: solver steps per frame.
+    pub substeps: usize,
+    /// `--solver`.
+    pub solver: SolverKind,
+    /// `--iterations K`: local/global iterations per step.
+    pub iterations: usize,
+    /// `--stiffness` (N/m).
+    pub stiffness: Option<f64>,
+    /// `--bend-stiffness` (N/m).
+    pub bend_stiffness: Option<f64>,
+    /// `--damping` (1/s).
+    pub damping: Option<f64>,
+    /// `--mass` (kg per particle); exclusive with `density`.
+    pub mass: Option<f64>,
+    /// `--density` (kg/m², or kg/m³ for `.tet`).
+    pub density: Option<f64>,
+    /// `--gravity X,Y,Z` (m/s²).
+    pub gravity: Option<DVec3>,
+    /// `--pin SPEC` (repeatable).
+    pub pins: Vec<PinSpec>,
+    /// `--interpolation`.
+    pub interpolation: Interpolation,
+    /// `--normals off` clears this.
+    pub normals: bool,
+    /// `--name`: the glTF mesh/node/animation name (default: the input's file stem).
+    pub name: Option<String>,
+}
+
+impl ClothJob {
+    /// A job with every option at its default.
+    pub fn new(source: ClothSource, output: PathBuf) -> Self {
+        ClothJob {
+            source,
+            object: None,
+            mesh: None,
+            output,
+            frames: None,
+            fps: None,
+            substeps: 1,
+            solver: SolverKind::Fast,
+            iterations: defaults::ITERATIONS,
+            stiffness: None,
+            bend_stiffness: None,
+            damping: None,
+            mass: None,
+            density: None,
+            gravity: None,
+            pins: Vec::new(),
+            interpolation: Interpolation::Linear,
+            normals: true,
+            name: None,
+        }
+    }
+}
+
+/// What a cloth bake did, as written by `--report`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ClothReport {
+    /// The input file or preset.
+    pub input: String,
+    /// Particles simulated (pinned included).
+    pub particles: usize,
+    /// Springs in the model.
+    pub springs: usize,
+    /// Springs by kind.
+    pub springs_by_kind: SpringCounts,
+    /// Pinned particles.
+    pub pinned: usize,
+    /// Triangles exported.
+    pub triangles: usize,
+    /// Frames baked after the initial state.
+    pub frames: usize,
+    /// Frames per second.
+    pub fps: f64,
+    /// Steps per frame.
+    pub substeps: usize,
+    /// The solver.
+    pub solver: SolverKind,
+    /// Time step h, seconds.
+    pub time_step: f64,
+    /// Material and environment actually used.
+    pub stiffness: f64,
+    /// Bending stiffness used, N/m.
+    pub bend_stiffness: f64,
+    /// Damping used, 1/s.
+    pub damping: f64,
+    /// Gravity used, m/s².
+    pub gravity: [f64; 3],
+    /// Total mass, kg.
+    pub total_mass: f64,
+    /// Solver iterations per frame (summed over substeps).
+    pub iterations: Vec<usize>,
+    /// Relative residual ‖∇g‖/weight at the end of each frame (worst substep).
+    pub residuals: Vec<f64>,
+    /// Frames whose solver stopped at its iteration cap.
+    pub unconverged_frames: Vec<usize>,
+    /// Seconds spent simulating.
+    pub seconds_simulate: f64,
+    /// Milliseconds per frame.
+    pub ms_per_frame: f64,
+    /// Milliseconds per solver iteration.
+    pub ms_per_iteration: f64,
+    /// Seconds spent writing the output.
+    pub seconds_export: f64,
+    /// The output file(s).
+    pub output: Vec<PathBuf>,
+    /// Bytes written.
+    pub output_bytes: u64,
+    /// Non-fatal quirks of the input.
+    pub warnings: Vec<String>,
+}
+
+/// Spring counts by kind.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct SpringCounts {
+    /// Along edges.
+    pub stretch: usize,
+    /// Across grid cells.
+    pub shear: usize,
+    /// Bending.
+    pub bend: usize,
+}
+
+/// A model ready to bake, with the parameters resolved from the job and the preset.
+#[derive(Debug, Clone)]
+pub struct PreparedCloth {
+    /// The model.
+    pub model: ClothModel,
+    /// The bake settings.
+    pub params: BakeParams,
+    /// Stiffness used, N/m.
+    pub stiffness: f64,
+    /// Bending stiffness used, N/m.
+    pub bend_stiffness: f64,
+    /// Spring counts.
+    pub counts: SpringCounts,
+}
+
+/// Loads the body and resolves every parameter of `job`, checking them.
+///
+/// # Errors
+/// Input errors (naming the file and element) and option errors (naming the option).
+pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
+    let frames = job.frames.unwrap_or(defaults::FRAMES);
+    if frames == 0 {
+        return Err(Error::option("--frames", "0: must be at least 1"));
+    }
+    if job.substeps == 0 {
+        return Err(Error::option("--substeps", "0: must be at least 1"));
+    }
+    if job.iterations == 0 {
+        return Err(Error::option("--iterations", "0: must be at least 1"));
+    }
+    if job.mass.is_some() && job.density.is_some() {
+        return Err(Error::option("--mass", "give either --mass (kg per particle) or --density, not both"));
+    }
+    let is_preset = matches!(job.source, ClothSource::LabCloth { .. });
+    let stiffness = positive("--stiffness", job.stiffness.unwrap_or(if is_preset { preset::defaults::STIFFNESS } else { defaults::STIFFNESS }))?;
+    let bend_stiffness = non_negative("--bend-stiffness", job.bend_stiffness.unwrap_or(if is_preset { stiffness } else { defaults::BEND_STIFFNESS }))?;
+    let damping = non_negative("--damping", job.damping.unwrap_or(if is_preset { preset::defaults::DAMPING } else { defaults::DAMPING }))?;
+    let fps = positive("--fps", job.fps.unwrap_or(if is_preset { preset::defaults::FPS } else { defaults::FPS }))?;
+    let gravity = job.gravity.unwrap_or(DVec3::from_array(if is_preset { preset::defaults::GRAVITY } else { defaults::GRAVITY }));
+    if let Some(m) = job.mass {
+        positive("--mass", m)?;
+    }
+    if let Some(d) = job.density {
+        positive("--density", d)?;
+    }
+
+    let (mesh, springs, mut pinned): (Mesh, SpringSet, Vec<bool>) = match &job.source {
+        ClothSource::LabCloth { resolution } => {
+            if *resolution == 0 || *resolution > 2000 {
+                return Err(Error::option("--resolution", format!("{resolution}: must be between 1 and 2000")));
+            }
+            let mut lab = lab_cloth(*resolution, stiffness);
+            // The lab's springs share one stiffness; --bend-stiffness overrides the bending ones.
+            for s in lab.springs.springs.iter_mut().filter(|s| s.kind == SpringKind::Bend) {
+                s.stiffness = bend_stiffness;
+            }
+            lab.springs.springs.retain(|s| s.stiffness > 0.0);
+            let mut pinned = vec![false; lab.mesh.particle_count()];
+            if job.pins.is_empty() {
+                for &p in &lab.pins {
+                    pinned[p as usize] = true;
+                }
+            }
+            (lab.mesh, lab.springs, pinned)
+        }
+        ClothSource::File(path) => {
+            let mesh = load_body(path, job)?;
+            let springs = if mesh.tets.is_empty() { surface_springs(&mesh, stiffness, bend_stiffness) } else { volume_springs(&mesh, stiffness) };
+            let n = mesh.particle_count();
+            (mesh, springs, vec![false; n])
+        }
+    };
+    for (flag, extra) in pinned.iter_mut().zip(pinned_flags(&mesh, &job.pins)?) {
+        *flag |= extra;
+    }
+    let mass = match (job.mass, job.density, is_preset) {
+        (Some(m), _, _) => vec![m; mesh.particle_count()],
+        (None, None, true) => vec![preset::defaults::MASS; mesh.particle_count()],
+        (None, density, _) if !mesh.tets.is_empty() => masses_from_volume(&mesh, density.unwrap_or(defaults::VOLUME_DENSITY)),
+        (None, density, _) => masses_from_area(&mesh, density.unwrap_or(defaults::AREAL_DENSITY)),
+    };
+    let counts = SpringCounts { stretch: springs.count(SpringKind::Stretch), shear: springs.count(SpringKind::Shear), bend: springs.count(SpringKind::Bend) };
+    let model = ClothModel::new(mesh, springs, mass, pinned)?;
+    let params = BakeParams { frames, fps, substeps: job.substeps, damping, gravity, solver: job.solver, iterations: job.iterations };
+    Ok(PreparedCloth { model, params, stiffness, bend_stiffness, counts })
+}
+
+/// Loads a body file by extension: `.obj`, `.gltf`/`.glb`, `.tet`.
+///
+/// # Errors
+/// Unknown extensions, unreadable or malformed files.
+pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if path.is_dir() {
+        return Err(Error::io(path, std::io::Error::other("is a directory, not a mesh file")));
+    }
+    match ext.as_deref() {
+        Some("obj") => obj::load_obj(path, &obj::ObjOptions { object: job.object.clone() }),
+        Some("gltf") | Some("glb") => load_gltf_mesh(path, job.mesh.as_deref()),
+        Some("tet") => load_tet(path),
+        _ => Err(Error::invalid(path, "unknown mesh format: expected .obj, .gltf, .glb or .tet")),
+    }
+}
+
+/// Runs a whole bake: prepare, simulate (calling `progress(frame, frames)`), export, report.
+///
+/// # Errors
+/// As [`prepare_cloth`]; [`Error::Diverged`] when the simulation blows up (nothing is written);
+/// write errors.
+pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Result<ClothReport> {
+    let prepared = prepare_cloth(job)?;
+    let PreparedCloth { model, params, .. } = &prepared;
+    let mut solver = make_solver(model, params)?;
+    let frames = params.frames;
+    let sim = simulate(model, solver.as_mut(), params, &mut |f| progress(f, frames))?;
+
+    let export_start = Instant::now();
+    let name = job.name.clone().unwrap_or_else(|| match &job.source {
+        ClothSource::File(p) => p.file_stem().and_then(|s| s.to_str()).unwrap_or("cloth").to_owned(),
+        ClothSource::LabCloth { .. } => "lab_cloth".to_owned(),
+    });
+    let written = write_morph_gltf(
+        &job.output,
+        &model.mesh,
+        &sim.cache,
+        &MorphOptions { fps: params.fps, interpolation: job.interpolation, name, normals: job.normals },
+    )?;
+    let seconds_export = export_start.elapsed().as_secs_f64();
+    Ok(report(&prepared, job, &sim.frames, sim.seconds, seconds_export, written))
+}
+
+fn report(prepared: &PreparedCloth, job: &ClothJob, frames: &[StepStats], seconds_simulate: f64, seconds_export: f64, written: crate::export::Written) -> ClothReport {
+    let PreparedCloth { model, params, .. } = prepared;
+    let total_iterations: usize = frames.iter().map(|f| f.iterations).sum();
+    ClothReport {
+        input: match &job.source {
+            ClothSource::File(p) => p.display().to_string(),
+            ClothSource::LabCloth { resolution } => format!("lab-cloth (resolution {resolution})"),
+        },
+        particles: model.particle_count(),
+        springs: model.springs.len(),
+        springs_by_kind: prepared.counts,
+        pinned: model.pinned_count(),
+        triangles: model.mesh.render_triangles.len(),
+        frames: params.frames,
+        fps: params.fps,
+        substeps: params.substeps,
+        solver: params.solver,
+        time_step: params.time_step(),
+        stiffness: prepared.stiffness,
+        bend_stiffness: prepared.bend_stiffness,
+        damping: params.damping,
+        gravity: params.gravity.to_array(),
+        total_mass: model.mass.iter().sum(),
+        iterations: frames.iter().map(|f| f.iterations).collect(),
+        residuals: frames.iter().map(|f| f.residual).collect(),
+        unconverged_frames: frames.iter().enumerate().filter(|(_, f)| !f.converged).map(|(i, _)| i + 1).collect(),
+        seconds_simulate,
+        ms_per_frame: 1e3 * seconds_simulate / params.frames as f64,
+        ms_per_iteration: 1e3 * seconds_simulate / total_iterations.max(1) as f64,
+        seconds_export,
+        output: written.files,
+        output_bytes: written.bytes,
+        warnings: model.warnings.clone(),
+    }
+}

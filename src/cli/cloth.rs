@@ -1,0 +1,158 @@
+//! `scenebake cloth`: options → [`ClothJob`].
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use scenebake::bake::cloth::{ClothJob, ClothSource};
+use scenebake::cloth::pins::PinSpec;
+use scenebake::cloth::SolverKind;
+use scenebake::export::Interpolation;
+use scenebake::glam::DVec3;
+
+/// Simulate a cloth or soft body and write it as a morph-target glTF.
+#[derive(Debug, Args)]
+#[command(after_help = "Examples:\n  scenebake cloth meshes/plane_30x30.obj -o exports/plane.glb --frames 120 --pin box:-1,-1,-1,1,1,-0.49\n  scenebake cloth --preset lab-cloth -o exports/lab_cloth.glb")]
+pub struct ClothArgs {
+    /// Mesh to simulate: .obj, .gltf/.glb (surface) or .tet (volume).
+    #[arg(required_unless_present = "preset", conflicts_with = "preset", value_name = "INPUT")]
+    pub input: Option<PathBuf>,
+    /// A generated reference scene instead of a file.
+    #[arg(long, value_enum)]
+    pub preset: Option<ClothPreset>,
+    /// Cells per side of the lab-cloth grid ((N+1)² particles over the same 2×2 m).
+    #[arg(long, default_value_t = 10, value_name = "N")]
+    pub resolution: u32,
+    /// Output file: .glb, or .gltf with a .bin beside it.
+    #[arg(short = 'o', long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Frames to bake after the initial state [default: 120; lab-cloth 120].
+    #[arg(long, value_name = "N")]
+    pub frames: Option<usize>,
+    /// Frames per second; the time step is 1/fps/substeps [default: 30; lab-cloth 60].
+    #[arg(long, value_name = "F")]
+    pub fps: Option<f64>,
+    /// Solver steps per frame.
+    #[arg(long, default_value_t = 1, value_name = "S")]
+    pub substeps: usize,
+    /// Time integrator.
+    #[arg(long, value_enum, default_value_t = SolverArg::Fast)]
+    pub solver: SolverArg,
+    /// Local/global iterations per step (fast solver).
+    #[arg(long, default_value_t = 10, value_name = "K")]
+    pub iterations: usize,
+    /// Spring stiffness in N/m [default: 1000; lab-cloth 100].
+    #[arg(long, value_name = "K")]
+    pub stiffness: Option<f64>,
+    /// Bending-spring stiffness in N/m, 0 for none [default: 2; lab-cloth = --stiffness].
+    #[arg(long, value_name = "K")]
+    pub bend_stiffness: Option<f64>,
+    /// Mass-proportional damping in 1/s, 0 for plain implicit Euler [default: 0.5; lab-cloth 0.2].
+    #[arg(long, value_name = "C")]
+    pub damping: Option<f64>,
+    /// Mass per particle in kg (instead of --density) [lab-cloth: 1].
+    #[arg(long, value_name = "KG")]
+    pub mass: Option<f64>,
+    /// Density: kg/m² for surfaces [default 0.2], kg/m³ for .tet volumes [default 50].
+    #[arg(long, value_name = "D")]
+    pub density: Option<f64>,
+    /// Gravity in m/s² [default: 0,-9.81,0; lab-cloth 0,-0.3,0].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub gravity: Option<DVec3>,
+    /// Hold particles fixed (repeatable): index:I,J,... (zero-based, file order),
+    /// box:X0,Y0,Z0,X1,Y1,Z1, or group:NAME (an OBJ group or object).
+    #[arg(long = "pin", value_name = "SPEC", value_parser = parse_pin, allow_hyphen_values = true)]
+    pub pins: Vec<PinSpec>,
+    /// Only this object or group of an OBJ (default: all, merged into one body).
+    #[arg(long, value_name = "NAME")]
+    pub object: Option<String>,
+    /// Which mesh of a glTF input (default: the first).
+    #[arg(long, value_name = "NAME")]
+    pub mesh: Option<String>,
+    /// Weight interpolation between frames.
+    #[arg(long, value_enum, default_value_t = InterpolationArg::Linear)]
+    pub interpolation: InterpolationArg,
+    /// Write NORMAL deltas in the morph targets.
+    #[arg(long, value_enum, default_value_t = OnOff::On)]
+    pub normals: OnOff,
+    /// Name of the glTF mesh, node and animation (default: the input's file stem).
+    #[arg(long, value_name = "NAME")]
+    pub name: Option<String>,
+    /// Write a JSON report of the bake.
+    #[arg(long, value_name = "FILE.json")]
+    pub report: Option<PathBuf>,
+}
+
+/// Generated cloth scenes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ClothPreset {
+    /// The labs' 2×2 m grid pinned at two corners.
+    LabCloth,
+}
+
+/// `--solver` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SolverArg {
+    /// Local/global fast mass-spring (Liu et al. 2013), prefactored.
+    Fast,
+}
+
+/// `--interpolation` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum InterpolationArg {
+    /// Linear blend between frames.
+    Linear,
+    /// Hold each frame.
+    Step,
+}
+
+/// On/off switches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OnOff {
+    /// Enabled.
+    On,
+    /// Disabled.
+    Off,
+}
+
+fn parse_vec3(s: &str) -> Result<DVec3, String> {
+    scenebake::spec::parse_vec3("", s).map_err(|e| e.to_string().replace("invalid value for : ", ""))
+}
+
+fn parse_pin(s: &str) -> Result<PinSpec, String> {
+    s.parse::<PinSpec>().map_err(|e| e.to_string().replace("invalid value for --pin: ", ""))
+}
+
+impl ClothArgs {
+    /// The library job these options describe.
+    pub fn job(&self) -> ClothJob {
+        let source = match (self.preset, &self.input) {
+            (Some(ClothPreset::LabCloth), _) => ClothSource::LabCloth { resolution: self.resolution },
+            (None, Some(path)) => ClothSource::File(path.clone()),
+            (None, None) => unreachable!("clap requires INPUT or --preset"),
+        };
+        let mut job = ClothJob::new(source, self.output.clone());
+        job.object = self.object.clone();
+        job.mesh = self.mesh.clone();
+        job.frames = self.frames;
+        job.fps = self.fps;
+        job.substeps = self.substeps;
+        job.solver = match self.solver {
+            SolverArg::Fast => SolverKind::Fast,
+        };
+        job.iterations = self.iterations;
+        job.stiffness = self.stiffness;
+        job.bend_stiffness = self.bend_stiffness;
+        job.damping = self.damping;
+        job.mass = self.mass;
+        job.density = self.density;
+        job.gravity = self.gravity;
+        job.pins = self.pins.clone();
+        job.interpolation = match self.interpolation {
+            InterpolationArg::Linear => Interpolation::Linear,
+            InterpolationArg::Step => Interpolation::Step,
+        };
+        job.normals = self.normals == OnOff::On;
+        job.name = self.name.clone();
+        job
+    }
+}

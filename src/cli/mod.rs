@@ -1,0 +1,111 @@
+//! The command-line front end: argument parsing, progress, summaries. All computation is in the
+//! library.
+
+pub mod cloth;
+pub mod progress;
+pub mod scene;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+
+/// Bake cloth simulations and IK animations offline into glTF files for Blender and game engines.
+#[derive(Debug, Parser)]
+#[command(name = "scenebake", version, about, propagate_version = true)]
+pub struct Cli {
+    /// No progress bar and no summary (errors are still printed).
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate a cloth or soft body and write it as a morph-target glTF.
+    Cloth(cloth::ClothArgs),
+    /// Run the jobs of a scene file (TOML) in order.
+    Run(scene::RunArgs),
+}
+
+/// One finished job, for summaries.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Outcome {
+    /// `cloth` or `ik`.
+    pub kind: &'static str,
+    /// The job's name.
+    pub name: String,
+    /// Main output file.
+    pub output: PathBuf,
+    /// Frames baked.
+    pub frames: usize,
+    /// Wall time, seconds.
+    pub seconds: f64,
+    /// Bytes written.
+    pub bytes: u64,
+    /// The job's own report.
+    pub report: serde_json::Value,
+}
+
+/// Runs one parsed command.
+pub fn execute(cli: &Cli) -> anyhow::Result<()> {
+    match &cli.command {
+        Command::Cloth(args) => {
+            let outcome = run_cloth(args, "cloth", cli.quiet)?;
+            if !cli.quiet {
+                eprintln!("{}", summary_line(&outcome));
+            }
+            Ok(())
+        }
+        Command::Run(args) => scene::run(args, cli.quiet),
+    }
+}
+
+/// Bakes one cloth job with a progress bar; writes its report when asked.
+pub fn run_cloth(args: &cloth::ClothArgs, label: &str, quiet: bool) -> anyhow::Result<Outcome> {
+    let job = args.job();
+    let frames = job.frames.unwrap_or(scenebake::bake::cloth::defaults::FRAMES) as u64;
+    let bar = progress::bar(label, frames, quiet);
+    let start = std::time::Instant::now();
+    let report = scenebake::bake::bake_cloth(&job, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    });
+    bar.finish_and_clear();
+    let report = report?;
+    let json = serde_json::to_value(&report)?;
+    if let Some(path) = &args.report {
+        write_report(path, &json)?;
+    }
+    Ok(Outcome {
+        kind: "cloth",
+        name: args.name.clone().unwrap_or_else(|| report.input.clone()),
+        output: job.output.clone(),
+        frames: report.frames,
+        seconds: start.elapsed().as_secs_f64(),
+        bytes: report.output_bytes,
+        report: json,
+    })
+}
+
+/// Writes a JSON report atomically.
+pub fn write_report(path: &Path, value: &serde_json::Value) -> anyhow::Result<()> {
+    let bytes = serde_json::to_vec_pretty(value)?;
+    scenebake::export::atomic::write_atomically(path, bytes).with_context(|| "cannot write the report".to_string())
+}
+
+/// The one-line summary printed after a job.
+pub fn summary_line(o: &Outcome) -> String {
+    let r = &o.report;
+    let extra = match o.kind {
+        "cloth" => format!(
+            " ({} particles, {} springs, {} pinned; {:.2} ms/frame)",
+            r["particles"], r["springs"], r["pinned"], r["ms_per_frame"].as_f64().unwrap_or(0.0)
+        ),
+        _ => String::new(),
+    };
+    format!("{}: baked {} frames{} in {:.2} s; wrote {} ({})", o.name, o.frames, extra, o.seconds, o.output.display(), progress::bytes(o.bytes))
+}

@@ -1,0 +1,170 @@
+//! Cloth bakes reloaded with an independent reader (the `gltf` crate): what the file says must be
+//! what the simulator computed.
+
+use std::path::{Path, PathBuf};
+
+use scenebake::bake::cloth::{bake_cloth, prepare_cloth, ClothJob, ClothSource};
+use scenebake::cloth::{make_solver, simulate, FrameCache};
+use scenebake::glam::Vec3;
+use scenebake::mesh::Mesh;
+
+fn mesh_path(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes").join(name)
+}
+
+/// Simulates `job` through the library directly: the reference the export must match.
+fn reference(job: &ClothJob) -> (Mesh, FrameCache, Vec<bool>) {
+    let p = prepare_cloth(job).unwrap();
+    let mut solver = make_solver(&p.model, &p.params).unwrap();
+    let sim = simulate(&p.model, solver.as_mut(), &p.params, &mut |_| {}).unwrap();
+    (p.model.mesh.clone(), sim.cache, p.model.pinned.clone())
+}
+
+struct Loaded {
+    base: Vec<[f32; 3]>,
+    deltas: Vec<Vec<[f32; 3]>>,
+    uvs: Option<Vec<[f32; 2]>>,
+    times: Vec<f32>,
+    weights: Vec<f32>,
+    target_names: Vec<String>,
+}
+
+fn load(path: &Path) -> Loaded {
+    let (doc, buffers, _) = gltf::import(path).expect("reload with the gltf crate");
+    assert_eq!(doc.meshes().count(), 1);
+    let mesh = doc.meshes().next().unwrap();
+    let prim = mesh.primitives().next().unwrap();
+    let reader = prim.reader(|b| Some(&buffers[b.index()]));
+    let base: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+    let deltas: Vec<Vec<[f32; 3]>> = reader.read_morph_targets().map(|(p, _, _)| p.expect("POSITION delta").collect()).collect();
+    for t in prim.morph_targets() {
+        let acc = t.positions().unwrap();
+        assert!(acc.min().is_some() && acc.max().is_some(), "morph POSITION accessors carry min/max");
+    }
+    assert!(prim.get(&gltf::Semantic::Positions).unwrap().min().is_some());
+    let uvs = reader.read_tex_coords(0).map(|t| t.into_f32().collect());
+    let anim = doc.animations().next().expect("an animation");
+    let channel = anim.channels().next().unwrap();
+    assert_eq!(channel.target().property(), gltf::animation::Property::MorphTargetWeights);
+    assert_eq!(channel.target().node().mesh().unwrap().index(), mesh.index(), "the animated node holds the mesh");
+    assert!(channel.target().node().skin().is_none());
+    let r = channel.reader(|b| Some(&buffers[b.index()]));
+    let times: Vec<f32> = r.read_inputs().unwrap().collect();
+    let weights: Vec<f32> = match r.read_outputs().unwrap() {
+        gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => w.into_f32().collect(),
+        _ => panic!("weights output"),
+    };
+    let extras: serde_json::Value = serde_json::from_str(mesh.extras().as_ref().unwrap().get()).unwrap();
+    let target_names = extras["targetNames"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_owned()).collect();
+    Loaded { base, deltas, uvs, times, weights, target_names }
+}
+
+#[test]
+fn plane_export_reproduces_the_simulation_frame_by_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("plane.glb");
+    let mut job = ClothJob::new(ClothSource::File(mesh_path("plane_30x30.obj")), out.clone());
+    job.frames = Some(24);
+    job.pins = vec!["box:-1,-1,-1,1,1,-0.49".parse().unwrap()];
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    assert_eq!(report.frames, 24);
+    assert_eq!(report.pinned, 31, "one edge of the 31×31 grid");
+    assert_eq!(report.output_bytes, std::fs::metadata(&out).unwrap().len());
+
+    let (mesh, cache, pinned) = reference(&job);
+    let f = load(&out);
+    let n = 24;
+    assert_eq!(f.deltas.len(), n, "one morph target per baked frame");
+    assert_eq!(f.target_names.len(), n);
+    assert_eq!(f.target_names[0], "frame_0001");
+    assert_eq!(f.times.len(), n + 1, "a key at every frame 0..N");
+    for (k, t) in f.times.iter().enumerate() {
+        assert!((t - k as f32 / 30.0).abs() < 1e-6, "key {k} at {t}");
+    }
+    // One-hot weights, all zero at frame 0.
+    assert_eq!(f.weights.len(), (n + 1) * n);
+    for k in 0..=n {
+        let row = &f.weights[k * n..(k + 1) * n];
+        for (j, w) in row.iter().enumerate() {
+            let expected = if k >= 1 && j == k - 1 { 1.0 } else { 0.0 };
+            assert_eq!(*w, expected, "weight of target {j} at frame {k}");
+        }
+    }
+    assert_eq!(f.base.len(), mesh.render_vertices.len());
+    for frame in [0, 1, 7, 24] {
+        let particles = cache.frame(frame);
+        for (v, rv) in mesh.render_vertices.iter().enumerate() {
+            let mut p = Vec3::from(f.base[v]);
+            if frame > 0 {
+                p += Vec3::from(f.deltas[frame - 1][v]);
+            }
+            let want = particles[rv.particle as usize];
+            assert!((p - want).length() < 1e-5, "frame {frame} vertex {v}: {p} vs {want}");
+            if pinned[rv.particle as usize] && frame > 0 {
+                assert_eq!(f.deltas[frame - 1][v], [0.0; 3], "pinned vertex {v} moved at frame {frame}");
+            }
+        }
+    }
+    // The cloth did fall: the free corner is lower at the end.
+    let lowest_end = (0..f.base.len()).map(|v| f.base[v][1] + f.deltas[n - 1][v][1]).fold(f32::INFINITY, f32::min);
+    assert!(lowest_end < -0.2, "lowest point {lowest_end}");
+}
+
+#[test]
+fn uvs_are_carried_over_from_the_obj() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cloth.gltf");
+    let mut job = ClothJob::new(ClothSource::File(mesh_path("cloth_z_up.obj")), out.clone());
+    job.frames = Some(3);
+    job.gravity = Some(scenebake::glam::DVec3::new(0.0, 0.0, -9.81));
+    job.pins = vec!["index:0".parse().unwrap()];
+    bake_cloth(&job, &mut |_, _| {}).unwrap();
+    assert!(dir.path().join("cloth.bin").exists(), ".gltf gets its .bin beside it");
+    let f = load(&out);
+    let mut got: Vec<[u32; 2]> = f.uvs.expect("TEXCOORD_0").iter().map(|[u, v]| [u.to_bits(), (1.0 - v).to_bits()]).collect();
+    // Independent reader: tobj's texture coordinates (glTF flips v).
+    let (models, _) = tobj::load_obj(mesh_path("cloth_z_up.obj"), &tobj::LoadOptions { triangulate: true, ..Default::default() }).unwrap();
+    let mut want: Vec<[u32; 2]> = models[0].mesh.texcoords.chunks(2).map(|t| [t[0].to_bits(), t[1].to_bits()]).collect();
+    got.sort_unstable();
+    got.dedup();
+    want.sort_unstable();
+    want.dedup();
+    // 1 - (1 - v) may differ from v in the last bit; compare as floats.
+    assert_eq!(got.len(), want.len());
+    for (g, w) in got.iter().zip(&want) {
+        assert_eq!(g[0], w[0]);
+        assert!((f32::from_bits(g[1]) - f32::from_bits(w[1])).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn step_interpolation_and_no_normals_are_honoured() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab.glb");
+    let mut job = ClothJob::new(ClothSource::LabCloth { resolution: 10 }, out.clone());
+    job.frames = Some(5);
+    job.interpolation = scenebake::export::Interpolation::Step;
+    job.normals = false;
+    bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let (doc, _, _) = gltf::import(&out).unwrap();
+    let sampler = doc.animations().next().unwrap().samplers().next().unwrap();
+    assert_eq!(sampler.interpolation(), gltf::animation::Interpolation::Step);
+    let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+    assert!(prim.get(&gltf::Semantic::Normals).is_none());
+    assert!(prim.morph_targets().all(|t| t.normals().is_none()));
+}
+
+#[test]
+fn a_failed_bake_keeps_the_earlier_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("keep.glb");
+    std::fs::write(&out, b"earlier export").unwrap();
+    let mut job = ClothJob::new(ClothSource::LabCloth { resolution: 10 }, out.clone());
+    job.frames = Some(50);
+    job.gravity = Some(scenebake::glam::DVec3::new(0.0, -1e300, 0.0)); // blows up
+    let err = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
+    assert!(err.contains("diverged at frame"), "{err}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"earlier export");
+    let names: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(names, vec!["keep.glb".to_string()], "no temporary left behind");
+}
