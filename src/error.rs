@@ -14,12 +14,12 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 #[non_exhaustive]
 pub enum Error {
     /// A file could not be opened, read or written.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// The file involved.
         path: PathBuf,
-        /// The operating system's error.
-        source: std::io::Error,
+        /// The operating system's error (already part of the message).
+        error: std::io::Error,
     },
     /// A file's content could not be understood.
     #[error("{path}{}: {message}", location_suffix(*.line))]
@@ -70,20 +70,20 @@ pub enum Error {
     #[error("sparse factorisation failed: {0}")]
     Factorisation(String),
     /// A glTF document could not be loaded.
-    #[error("{path}: {source}")]
+    #[error("{path}: {}", describe_gltf(error))]
     Gltf {
         /// The file involved.
         path: PathBuf,
-        /// The `gltf` crate's error.
-        source: gltf::Error,
+        /// The `gltf` crate's error (already part of the message).
+        error: gltf::Error,
     },
     /// A glTF document could not be serialised.
-    #[error("{path}: cannot serialise glTF JSON: {source}")]
+    #[error("{path}: cannot serialise glTF JSON: {error}")]
     Json {
         /// The output file.
         path: PathBuf,
-        /// The serialiser's error.
-        source: serde_json::Error,
+        /// The serialiser's error (already part of the message).
+        error: serde_json::Error,
     },
     /// An inverse-kinematics chain could not be built.
     #[error("{0}")]
@@ -98,6 +98,34 @@ pub enum Error {
     },
 }
 
+/// The `gltf` crate's errors in words a user can act on.
+fn describe_gltf(e: &gltf::Error) -> String {
+    match e {
+        gltf::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "the file ends early: truncated or corrupt glTF binary".into()
+        }
+        gltf::Error::Binary(b) => format!("not a valid GLB container ({b})"),
+        gltf::Error::Deserialize(d) => format!("invalid glTF JSON ({d})"),
+        gltf::Error::Validation(v) => {
+            let first: Vec<String> = v
+                .iter()
+                .take(3)
+                .map(|(path, err)| format!("{}: {err}", path.as_str()))
+                .collect();
+            format!(
+                "invalid glTF ({}{})",
+                first.join("; "),
+                if v.len() > 3 {
+                    format!("; and {} more", v.len() - 3)
+                } else {
+                    String::new()
+                }
+            )
+        }
+        other => other.to_string(),
+    }
+}
+
 fn location_suffix(line: Option<usize>) -> String {
     line.map(|l| format!(":{l}")).unwrap_or_default()
 }
@@ -107,7 +135,7 @@ impl Error {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            source,
+            error: source,
         }
     }
 

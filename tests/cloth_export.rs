@@ -9,7 +9,9 @@ use scenebake::glam::Vec3;
 use scenebake::mesh::Mesh;
 
 fn mesh_path(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("meshes")
+        .join(name)
 }
 
 /// Simulates `job` through the library directly: the reference the export must match.
@@ -36,17 +38,34 @@ fn load(path: &Path) -> Loaded {
     let prim = mesh.primitives().next().unwrap();
     let reader = prim.reader(|b| Some(&buffers[b.index()]));
     let base: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
-    let deltas: Vec<Vec<[f32; 3]>> = reader.read_morph_targets().map(|(p, _, _)| p.expect("POSITION delta").collect()).collect();
+    let deltas: Vec<Vec<[f32; 3]>> = reader
+        .read_morph_targets()
+        .map(|(p, _, _)| p.expect("POSITION delta").collect())
+        .collect();
     for t in prim.morph_targets() {
         let acc = t.positions().unwrap();
-        assert!(acc.min().is_some() && acc.max().is_some(), "morph POSITION accessors carry min/max");
+        assert!(
+            acc.min().is_some() && acc.max().is_some(),
+            "morph POSITION accessors carry min/max"
+        );
     }
-    assert!(prim.get(&gltf::Semantic::Positions).unwrap().min().is_some());
+    assert!(prim
+        .get(&gltf::Semantic::Positions)
+        .unwrap()
+        .min()
+        .is_some());
     let uvs = reader.read_tex_coords(0).map(|t| t.into_f32().collect());
     let anim = doc.animations().next().expect("an animation");
     let channel = anim.channels().next().unwrap();
-    assert_eq!(channel.target().property(), gltf::animation::Property::MorphTargetWeights);
-    assert_eq!(channel.target().node().mesh().unwrap().index(), mesh.index(), "the animated node holds the mesh");
+    assert_eq!(
+        channel.target().property(),
+        gltf::animation::Property::MorphTargetWeights
+    );
+    assert_eq!(
+        channel.target().node().mesh().unwrap().index(),
+        mesh.index(),
+        "the animated node holds the mesh"
+    );
     assert!(channel.target().node().skin().is_none());
     let r = channel.reader(|b| Some(&buffers[b.index()]));
     let times: Vec<f32> = r.read_inputs().unwrap().collect();
@@ -54,9 +73,22 @@ fn load(path: &Path) -> Loaded {
         gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => w.into_f32().collect(),
         _ => panic!("weights output"),
     };
-    let extras: serde_json::Value = serde_json::from_str(mesh.extras().as_ref().unwrap().get()).unwrap();
-    let target_names = extras["targetNames"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_owned()).collect();
-    Loaded { base, deltas, uvs, times, weights, target_names }
+    let extras: serde_json::Value =
+        serde_json::from_str(mesh.extras().as_ref().unwrap().get()).unwrap();
+    let target_names = extras["targetNames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_owned())
+        .collect();
+    Loaded {
+        base,
+        deltas,
+        uvs,
+        times,
+        weights,
+        target_names,
+    }
 }
 
 #[test]
@@ -99,14 +131,23 @@ fn plane_export_reproduces_the_simulation_frame_by_frame() {
                 p += Vec3::from(f.deltas[frame - 1][v]);
             }
             let want = particles[rv.particle as usize];
-            assert!((p - want).length() < 1e-5, "frame {frame} vertex {v}: {p} vs {want}");
+            assert!(
+                (p - want).length() < 1e-5,
+                "frame {frame} vertex {v}: {p} vs {want}"
+            );
             if pinned[rv.particle as usize] && frame > 0 {
-                assert_eq!(f.deltas[frame - 1][v], [0.0; 3], "pinned vertex {v} moved at frame {frame}");
+                assert_eq!(
+                    f.deltas[frame - 1][v],
+                    [0.0; 3],
+                    "pinned vertex {v} moved at frame {frame}"
+                );
             }
         }
     }
     // The cloth did fall: the free corner is lower at the end.
-    let lowest_end = (0..f.base.len()).map(|v| f.base[v][1] + f.deltas[n - 1][v][1]).fold(f32::INFINITY, f32::min);
+    let lowest_end = (0..f.base.len())
+        .map(|v| f.base[v][1] + f.deltas[n - 1][v][1])
+        .fold(f32::INFINITY, f32::min);
     assert!(lowest_end < -0.2, "lowest point {lowest_end}");
 }
 
@@ -119,12 +160,32 @@ fn uvs_are_carried_over_from_the_obj() {
     job.gravity = Some(scenebake::glam::DVec3::new(0.0, 0.0, -9.81));
     job.pins = vec!["index:0".parse().unwrap()];
     bake_cloth(&job, &mut |_, _| {}).unwrap();
-    assert!(dir.path().join("cloth.bin").exists(), ".gltf gets its .bin beside it");
+    assert!(
+        dir.path().join("cloth.bin").exists(),
+        ".gltf gets its .bin beside it"
+    );
     let f = load(&out);
-    let mut got: Vec<[u32; 2]> = f.uvs.expect("TEXCOORD_0").iter().map(|[u, v]| [u.to_bits(), (1.0 - v).to_bits()]).collect();
+    let mut got: Vec<[u32; 2]> = f
+        .uvs
+        .expect("TEXCOORD_0")
+        .iter()
+        .map(|[u, v]| [u.to_bits(), (1.0 - v).to_bits()])
+        .collect();
     // Independent reader: tobj's texture coordinates (glTF flips v).
-    let (models, _) = tobj::load_obj(mesh_path("cloth_z_up.obj"), &tobj::LoadOptions { triangulate: true, ..Default::default() }).unwrap();
-    let mut want: Vec<[u32; 2]> = models[0].mesh.texcoords.chunks(2).map(|t| [t[0].to_bits(), t[1].to_bits()]).collect();
+    let (models, _) = tobj::load_obj(
+        mesh_path("cloth_z_up.obj"),
+        &tobj::LoadOptions {
+            triangulate: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let mut want: Vec<[u32; 2]> = models[0]
+        .mesh
+        .texcoords
+        .chunks(2)
+        .map(|t| [t[0].to_bits(), t[1].to_bits()])
+        .collect();
     got.sort_unstable();
     got.dedup();
     want.sort_unstable();
@@ -148,7 +209,10 @@ fn step_interpolation_and_no_normals_are_honoured() {
     bake_cloth(&job, &mut |_, _| {}).unwrap();
     let (doc, _, _) = gltf::import(&out).unwrap();
     let sampler = doc.animations().next().unwrap().samplers().next().unwrap();
-    assert_eq!(sampler.interpolation(), gltf::animation::Interpolation::Step);
+    assert_eq!(
+        sampler.interpolation(),
+        gltf::animation::Interpolation::Step
+    );
     let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
     assert!(prim.get(&gltf::Semantic::Normals).is_none());
     assert!(prim.morph_targets().all(|t| t.normals().is_none()));
@@ -165,6 +229,13 @@ fn a_failed_bake_keeps_the_earlier_export() {
     let err = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
     assert!(err.contains("diverged at frame"), "{err}");
     assert_eq!(std::fs::read(&out).unwrap(), b"earlier export");
-    let names: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
-    assert_eq!(names, vec!["keep.glb".to_string()], "no temporary left behind");
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        vec!["keep.glb".to_string()],
+        "no temporary left behind"
+    );
 }

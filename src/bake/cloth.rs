@@ -223,14 +223,49 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         return Err(Error::option("--iterations", "0: must be at least 1"));
     }
     if job.mass.is_some() && job.density.is_some() {
-        return Err(Error::option("--mass", "give either --mass (kg per particle) or --density, not both"));
+        return Err(Error::option(
+            "--mass",
+            "give either --mass (kg per particle) or --density, not both",
+        ));
     }
     let is_preset = matches!(job.source, ClothSource::LabCloth { .. });
-    let stiffness = positive("--stiffness", job.stiffness.unwrap_or(if is_preset { preset::defaults::STIFFNESS } else { defaults::STIFFNESS }))?;
-    let bend_stiffness = non_negative("--bend-stiffness", job.bend_stiffness.unwrap_or(if is_preset { stiffness } else { defaults::BEND_STIFFNESS }))?;
-    let damping = non_negative("--damping", job.damping.unwrap_or(if is_preset { preset::defaults::DAMPING } else { defaults::DAMPING }))?;
-    let fps = positive("--fps", job.fps.unwrap_or(if is_preset { preset::defaults::FPS } else { defaults::FPS }))?;
-    let gravity = job.gravity.unwrap_or(DVec3::from_array(if is_preset { preset::defaults::GRAVITY } else { defaults::GRAVITY }));
+    let stiffness = positive(
+        "--stiffness",
+        job.stiffness.unwrap_or(if is_preset {
+            preset::defaults::STIFFNESS
+        } else {
+            defaults::STIFFNESS
+        }),
+    )?;
+    let bend_stiffness = non_negative(
+        "--bend-stiffness",
+        job.bend_stiffness.unwrap_or(if is_preset {
+            stiffness
+        } else {
+            defaults::BEND_STIFFNESS
+        }),
+    )?;
+    let damping = non_negative(
+        "--damping",
+        job.damping.unwrap_or(if is_preset {
+            preset::defaults::DAMPING
+        } else {
+            defaults::DAMPING
+        }),
+    )?;
+    let fps = positive(
+        "--fps",
+        job.fps.unwrap_or(if is_preset {
+            preset::defaults::FPS
+        } else {
+            defaults::FPS
+        }),
+    )?;
+    let gravity = job.gravity.unwrap_or(DVec3::from_array(if is_preset {
+        preset::defaults::GRAVITY
+    } else {
+        defaults::GRAVITY
+    }));
     if let Some(m) = job.mass {
         positive("--mass", m)?;
     }
@@ -241,11 +276,19 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     let (mesh, springs, mut pinned): (Mesh, SpringSet, Vec<bool>) = match &job.source {
         ClothSource::LabCloth { resolution } => {
             if *resolution == 0 || *resolution > 2000 {
-                return Err(Error::option("--resolution", format!("{resolution}: must be between 1 and 2000")));
+                return Err(Error::option(
+                    "--resolution",
+                    format!("{resolution}: must be between 1 and 2000"),
+                ));
             }
             let mut lab = lab_cloth(*resolution, stiffness);
             // The lab's springs share one stiffness; --bend-stiffness overrides the bending ones.
-            for s in lab.springs.springs.iter_mut().filter(|s| s.kind == SpringKind::Bend) {
+            for s in lab
+                .springs
+                .springs
+                .iter_mut()
+                .filter(|s| s.kind == SpringKind::Bend)
+            {
                 s.stiffness = bend_stiffness;
             }
             lab.springs.springs.retain(|s| s.stiffness > 0.0);
@@ -259,7 +302,11 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         }
         ClothSource::File(path) => {
             let mesh = load_body(path, job)?;
-            let springs = if mesh.tets.is_empty() { surface_springs(&mesh, stiffness, bend_stiffness) } else { volume_springs(&mesh, stiffness) };
+            let springs = if mesh.tets.is_empty() {
+                surface_springs(&mesh, stiffness, bend_stiffness)
+            } else {
+                volume_springs(&mesh, stiffness)
+            };
             let n = mesh.particle_count();
             (mesh, springs, vec![false; n])
         }
@@ -270,13 +317,33 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     let mass = match (job.mass, job.density, is_preset) {
         (Some(m), _, _) => vec![m; mesh.particle_count()],
         (None, None, true) => vec![preset::defaults::MASS; mesh.particle_count()],
-        (None, density, _) if !mesh.tets.is_empty() => masses_from_volume(&mesh, density.unwrap_or(defaults::VOLUME_DENSITY)),
+        (None, density, _) if !mesh.tets.is_empty() => {
+            masses_from_volume(&mesh, density.unwrap_or(defaults::VOLUME_DENSITY))
+        }
         (None, density, _) => masses_from_area(&mesh, density.unwrap_or(defaults::AREAL_DENSITY)),
     };
-    let counts = SpringCounts { stretch: springs.count(SpringKind::Stretch), shear: springs.count(SpringKind::Shear), bend: springs.count(SpringKind::Bend) };
+    let counts = SpringCounts {
+        stretch: springs.count(SpringKind::Stretch),
+        shear: springs.count(SpringKind::Shear),
+        bend: springs.count(SpringKind::Bend),
+    };
     let model = ClothModel::new(mesh, springs, mass, pinned)?;
-    let params = BakeParams { frames, fps, substeps: job.substeps, damping, gravity, solver: job.solver, iterations: job.iterations };
-    Ok(PreparedCloth { model, params, stiffness, bend_stiffness, counts })
+    let params = BakeParams {
+        frames,
+        fps,
+        substeps: job.substeps,
+        damping,
+        gravity,
+        solver: job.solver,
+        iterations: job.iterations,
+    };
+    Ok(PreparedCloth {
+        model,
+        params,
+        stiffness,
+        bend_stiffness,
+        counts,
+    })
 }
 
 /// Loads a body file by extension: `.obj`, `.gltf`/`.glb`, `.tet`.
@@ -284,15 +351,29 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
 /// # Errors
 /// Unknown extensions, unreadable or malformed files.
 pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
     if path.is_dir() {
-        return Err(Error::io(path, std::io::Error::other("is a directory, not a mesh file")));
+        return Err(Error::io(
+            path,
+            std::io::Error::other("is a directory, not a mesh file"),
+        ));
     }
     match ext.as_deref() {
-        Some("obj") => obj::load_obj(path, &obj::ObjOptions { object: job.object.clone() }),
+        Some("obj") => obj::load_obj(
+            path,
+            &obj::ObjOptions {
+                object: job.object.clone(),
+            },
+        ),
         Some("gltf") | Some("glb") => load_gltf_mesh(path, job.mesh.as_deref()),
         Some("tet") => load_tet(path),
-        _ => Err(Error::invalid(path, "unknown mesh format: expected .obj, .gltf, .glb or .tet")),
+        _ => Err(Error::invalid(
+            path,
+            "unknown mesh format: expected .obj, .gltf, .glb or .tet",
+        )),
     }
 }
 
@@ -310,20 +391,43 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
 
     let export_start = Instant::now();
     let name = job.name.clone().unwrap_or_else(|| match &job.source {
-        ClothSource::File(p) => p.file_stem().and_then(|s| s.to_str()).unwrap_or("cloth").to_owned(),
+        ClothSource::File(p) => p
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("cloth")
+            .to_owned(),
         ClothSource::LabCloth { .. } => "lab_cloth".to_owned(),
     });
     let written = write_morph_gltf(
         &job.output,
         &model.mesh,
         &sim.cache,
-        &MorphOptions { fps: params.fps, interpolation: job.interpolation, name, normals: job.normals },
+        &MorphOptions {
+            fps: params.fps,
+            interpolation: job.interpolation,
+            name,
+            normals: job.normals,
+        },
     )?;
     let seconds_export = export_start.elapsed().as_secs_f64();
-    Ok(report(&prepared, job, &sim.frames, sim.seconds, seconds_export, written))
+    Ok(report(
+        &prepared,
+        job,
+        &sim.frames,
+        sim.seconds,
+        seconds_export,
+        written,
+    ))
 }
 
-fn report(prepared: &PreparedCloth, job: &ClothJob, frames: &[StepStats], seconds_simulate: f64, seconds_export: f64, written: crate::export::Written) -> ClothReport {
+fn report(
+    prepared: &PreparedCloth,
+    job: &ClothJob,
+    frames: &[StepStats],
+    seconds_simulate: f64,
+    seconds_export: f64,
+    written: crate::export::Written,
+) -> ClothReport {
     let PreparedCloth { model, params, .. } = prepared;
     let total_iterations: usize = frames.iter().map(|f| f.iterations).sum();
     ClothReport {
@@ -348,7 +452,12 @@ fn report(prepared: &PreparedCloth, job: &ClothJob, frames: &[StepStats], second
         total_mass: model.mass.iter().sum(),
         iterations: frames.iter().map(|f| f.iterations).collect(),
         residuals: frames.iter().map(|f| f.residual).collect(),
-        unconverged_frames: frames.iter().enumerate().filter(|(_, f)| !f.converged).map(|(i, _)| i + 1).collect(),
+        unconverged_frames: frames
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| !f.converged)
+            .map(|(i, _)| i + 1)
+            .collect(),
         seconds_simulate,
         ms_per_frame: 1e3 * seconds_simulate / params.frames as f64,
         ms_per_iteration: 1e3 * seconds_simulate / total_iterations.max(1) as f64,

@@ -11,10 +11,17 @@ use scenebake::glam::DVec3;
 
 /// Simulate a cloth or soft body and write it as a morph-target glTF.
 #[derive(Debug, Args)]
-#[command(after_help = "Examples:\n  scenebake cloth meshes/plane_30x30.obj -o exports/plane.glb --frames 120 --pin box:-1,-1,-1,1,1,-0.49\n  scenebake cloth --preset lab-cloth -o exports/lab_cloth.glb")]
+#[command(
+    allow_negative_numbers = true,
+    after_help = "Examples:\n  scenebake cloth meshes/plane_30x30.obj -o exports/plane.glb --frames 120 --pin box:-1,-1,-1,1,1,-0.49\n  scenebake cloth --preset lab-cloth -o exports/lab_cloth.glb"
+)]
 pub struct ClothArgs {
     /// Mesh to simulate: .obj, .gltf/.glb (surface) or .tet (volume).
-    #[arg(required_unless_present = "preset", conflicts_with = "preset", value_name = "INPUT")]
+    #[arg(
+        required_unless_present = "preset",
+        conflicts_with = "preset",
+        value_name = "INPUT"
+    )]
     pub input: Option<PathBuf>,
     /// A generated reference scene instead of a file.
     #[arg(long, value_enum)]
@@ -115,18 +122,22 @@ pub enum OnOff {
 }
 
 fn parse_vec3(s: &str) -> Result<DVec3, String> {
-    scenebake::spec::parse_vec3("", s).map_err(|e| e.to_string().replace("invalid value for : ", ""))
+    scenebake::spec::parse_vec3("", s)
+        .map_err(|e| e.to_string().replace("invalid value for : ", ""))
 }
 
 fn parse_pin(s: &str) -> Result<PinSpec, String> {
-    s.parse::<PinSpec>().map_err(|e| e.to_string().replace("invalid value for --pin: ", ""))
+    s.parse::<PinSpec>()
+        .map_err(|e| e.to_string().replace("invalid value for --pin: ", ""))
 }
 
 impl ClothArgs {
     /// The library job these options describe.
     pub fn job(&self) -> ClothJob {
         let source = match (self.preset, &self.input) {
-            (Some(ClothPreset::LabCloth), _) => ClothSource::LabCloth { resolution: self.resolution },
+            (Some(ClothPreset::LabCloth), _) => ClothSource::LabCloth {
+                resolution: self.resolution,
+            },
             (None, Some(path)) => ClothSource::File(path.clone()),
             (None, None) => unreachable!("clap requires INPUT or --preset"),
         };

@@ -67,7 +67,9 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
 /// Bakes one cloth job with a progress bar; writes its report when asked.
 pub fn run_cloth(args: &cloth::ClothArgs, label: &str, quiet: bool) -> anyhow::Result<Outcome> {
     let job = args.job();
-    let frames = job.frames.unwrap_or(scenebake::bake::cloth::defaults::FRAMES) as u64;
+    let frames = job
+        .frames
+        .unwrap_or(scenebake::bake::cloth::defaults::FRAMES) as u64;
     let bar = progress::bar(label, frames, quiet);
     let start = std::time::Instant::now();
     let report = scenebake::bake::bake_cloth(&job, &mut |done, total| {
@@ -94,7 +96,8 @@ pub fn run_cloth(args: &cloth::ClothArgs, label: &str, quiet: bool) -> anyhow::R
 /// Writes a JSON report atomically.
 pub fn write_report(path: &Path, value: &serde_json::Value) -> anyhow::Result<()> {
     let bytes = serde_json::to_vec_pretty(value)?;
-    scenebake::export::atomic::write_atomically(path, bytes).with_context(|| "cannot write the report".to_string())
+    scenebake::export::atomic::write_atomically(path, bytes)
+        .with_context(|| "cannot write the report".to_string())
 }
 
 /// The one-line summary printed after a job.
@@ -103,9 +106,20 @@ pub fn summary_line(o: &Outcome) -> String {
     let extra = match o.kind {
         "cloth" => format!(
             " ({} particles, {} springs, {} pinned; {:.2} ms/frame)",
-            r["particles"], r["springs"], r["pinned"], r["ms_per_frame"].as_f64().unwrap_or(0.0)
+            r["particles"],
+            r["springs"],
+            r["pinned"],
+            r["ms_per_frame"].as_f64().unwrap_or(0.0)
         ),
         _ => String::new(),
     };
-    format!("{}: baked {} frames{} in {:.2} s; wrote {} ({})", o.name, o.frames, extra, o.seconds, o.output.display(), progress::bytes(o.bytes))
+    format!(
+        "{}: baked {} frames{} in {:.2} s; wrote {} ({})",
+        o.name,
+        o.frames,
+        extra,
+        o.seconds,
+        o.output.display(),
+        progress::bytes(o.bytes)
+    )
 }

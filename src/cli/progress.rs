@@ -7,11 +7,20 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 /// Creates a bar for `len` steps labelled `label`; hidden when stderr is not a terminal or
 /// `quiet` is set.
 pub fn bar(label: &str, len: u64, quiet: bool) -> ProgressBar {
-    let bar = ProgressBar::with_draw_target(Some(len), if quiet || !std::io::stderr().is_terminal() { ProgressDrawTarget::hidden() } else { ProgressDrawTarget::stderr() });
+    let bar = ProgressBar::with_draw_target(
+        Some(len),
+        if quiet || !std::io::stderr().is_terminal() {
+            ProgressDrawTarget::hidden()
+        } else {
+            ProgressDrawTarget::stderr()
+        },
+    );
     bar.set_style(
-        ProgressStyle::with_template("{prefix:.bold} [{bar:30}] {pos}/{len} frames {per_sec} eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{prefix:.bold} [{bar:30}] {pos}/{len} frames {per_sec} eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
     );
     bar.set_prefix(label.to_owned());
     bar

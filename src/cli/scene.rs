@@ -47,7 +47,11 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
             let hit: Vec<&SceneJob> = jobs.iter().filter(|j| &j.name == only).collect();
             if hit.is_empty() {
                 let names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
-                bail!("{}: no job named `{only}` (jobs: {})", args.scene.display(), names.join(", "));
+                bail!(
+                    "{}: no job named `{only}` (jobs: {})",
+                    args.scene.display(),
+                    names.join(", ")
+                );
             }
             hit
         }
@@ -61,18 +65,35 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
             Command::Cloth(a) => run_cloth(a, &label, quiet),
             Command::Run(_) => unreachable!("scene jobs are cloth or ik"),
         }
-        .with_context(|| format!("{}: job `{}` ({})", args.scene.display(), job.name, job.kind))?;
+        .with_context(|| {
+            format!(
+                "{}: job `{}` ({})",
+                args.scene.display(),
+                job.name,
+                job.kind
+            )
+        })?;
         if !quiet {
             eprintln!("{label}: {}", summary_line(&outcome));
         }
-        outcomes.push(Outcome { name: job.name.clone(), ..outcome });
+        outcomes.push(Outcome {
+            name: job.name.clone(),
+            ..outcome
+        });
     }
     if !quiet {
         println!("{}", table(&outcomes));
-        println!("{} jobs in {:.2} s", outcomes.len(), start.elapsed().as_secs_f64());
+        println!(
+            "{} jobs in {:.2} s",
+            outcomes.len(),
+            start.elapsed().as_secs_f64()
+        );
     }
     if let Some(path) = &args.report {
-        write_report(path, &serde_json::json!({ "scene": args.scene, "seconds_total": start.elapsed().as_secs_f64(), "jobs": outcomes }))?;
+        write_report(
+            path,
+            &serde_json::json!({ "scene": args.scene, "seconds_total": start.elapsed().as_secs_f64(), "jobs": outcomes }),
+        )?;
     }
     Ok(())
 }
@@ -80,7 +101,16 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
 fn table(outcomes: &[Outcome]) -> String {
     let rows: Vec<[String; 6]> = outcomes
         .iter()
-        .map(|o| [o.kind.to_string(), o.name.clone(), o.output.display().to_string(), o.frames.to_string(), format!("{:.2} s", o.seconds), progress::bytes(o.bytes)])
+        .map(|o| {
+            [
+                o.kind.to_string(),
+                o.name.clone(),
+                o.output.display().to_string(),
+                o.frames.to_string(),
+                format!("{:.2} s", o.seconds),
+                progress::bytes(o.bytes),
+            ]
+        })
         .collect();
     let header = ["job", "name", "output", "frames", "time", "size"].map(String::from);
     let mut widths = header.clone().map(|h| h.len());
@@ -91,7 +121,15 @@ fn table(outcomes: &[Outcome]) -> String {
     }
     std::iter::once(&header)
         .chain(&rows)
-        .map(|r| r.iter().zip(widths).map(|(c, w)| format!("{c:<w$}")).collect::<Vec<_>>().join("  ").trim_end().to_owned())
+        .map(|r| {
+            r.iter()
+                .zip(widths)
+                .map(|(c, w)| format!("{c:<w$}"))
+                .collect::<Vec<_>>()
+                .join("  ")
+                .trim_end()
+                .to_owned()
+        })
         .collect::<Vec<_>>()
         .join("\n")
 }
@@ -99,30 +137,56 @@ fn table(outcomes: &[Outcome]) -> String {
 /// Reads a scene file and parses every job with the command-line parser.
 fn load_scene(path: &Path) -> anyhow::Result<Vec<SceneJob>> {
     let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let doc: toml::Table = text.parse().map_err(|e: toml::de::Error| anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+    let doc: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+        anyhow!("{}: {}", path.display(), e.to_string().trim_end())
+    })?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut jobs = Vec::new();
     for (kind, value) in &doc {
         if !KINDS.contains(&kind.as_str()) {
-            bail!("{}: unknown table `{kind}` (jobs are [[{}]])", path.display(), KINDS.join("]], [["));
+            bail!(
+                "{}: unknown table `{kind}` (jobs are [[{}]])",
+                path.display(),
+                KINDS.join("]], [[")
+            );
         }
-        let tables = value.as_array().ok_or_else(|| anyhow!("{}: `{kind}` must be an array of tables: write [[{kind}]]", path.display()))?;
+        let tables = value.as_array().ok_or_else(|| {
+            anyhow!(
+                "{}: `{kind}` must be an array of tables: write [[{kind}]]",
+                path.display()
+            )
+        })?;
         for (i, table) in tables.iter().enumerate() {
-            let table = table.as_table().ok_or_else(|| anyhow!("{}: [[{kind}]] entry {} is not a table", path.display(), i + 1))?;
+            let table = table.as_table().ok_or_else(|| {
+                anyhow!(
+                    "{}: [[{kind}]] entry {} is not a table",
+                    path.display(),
+                    i + 1
+                )
+            })?;
             let name = match table.get("name") {
                 Some(toml::Value::String(s)) => s.clone(),
                 _ => format!("{kind}{}", i + 1),
             };
             let place = format!("{}: [[{kind}]] job {} (`{name}`)", path.display(), i + 1);
             let argv = job_arguments(kind, table, &dir).map_err(|e| anyhow!("{place}: {e}"))?;
-            let cli = Cli::try_parse_from(argv).map_err(|e| anyhow!("{place}: {}", clap_message(&e)))?;
-            jobs.push(SceneJob { kind: kind.clone(), name, command: cli.command });
+            let cli =
+                Cli::try_parse_from(argv).map_err(|e| anyhow!("{place}: {}", clap_message(&e)))?;
+            jobs.push(SceneJob {
+                kind: kind.clone(),
+                name,
+                command: cli.command,
+            });
         }
     }
     let mut names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
     names.sort_unstable();
     if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
-        bail!("{}: two jobs are named `{}`; names must be unique for --only", path.display(), w[0]);
+        bail!(
+            "{}: two jobs are named `{}`; names must be unique for --only",
+            path.display(),
+            w[0]
+        );
     }
     Ok(jobs)
 }
@@ -130,16 +194,29 @@ fn load_scene(path: &Path) -> anyhow::Result<Vec<SceneJob>> {
 /// The argument vector `scenebake KIND --key value ...` for one job table.
 fn job_arguments(kind: &str, table: &toml::Table, dir: &Path) -> anyhow::Result<Vec<OsString>> {
     let command = Cli::command();
-    let sub = command.find_subcommand(kind).ok_or_else(|| anyhow!("unknown job kind `{kind}`"))?;
+    let sub = command
+        .find_subcommand(kind)
+        .ok_or_else(|| anyhow!("unknown job kind `{kind}`"))?;
     let mut argv: Vec<OsString> = vec!["scenebake".into(), kind.into()];
     let mut positional = Vec::new();
     for (raw_key, value) in table {
         let key = raw_key.replace('_', "-");
         let arg = sub
             .get_arguments()
-            .find(|a| a.get_long() == Some(key.as_str()) || (a.is_positional() && a.get_id().as_str() == key))
+            .find(|a| {
+                a.get_long() == Some(key.as_str())
+                    || (a.is_positional() && a.get_id().as_str() == key)
+            })
             .ok_or_else(|| {
-                let mut known: Vec<String> = sub.get_arguments().filter_map(|a| a.get_long().map(str::to_owned).or_else(|| a.is_positional().then(|| a.get_id().to_string()))).filter(|k| k != "help" && k != "version" && k != "quiet").collect();
+                let mut known: Vec<String> = sub
+                    .get_arguments()
+                    .filter_map(|a| {
+                        a.get_long()
+                            .map(str::to_owned)
+                            .or_else(|| a.is_positional().then(|| a.get_id().to_string()))
+                    })
+                    .filter(|k| k != "help" && k != "version" && k != "quiet")
+                    .collect();
                 known.sort();
                 anyhow!("unknown key `{raw_key}` (keys: {})", known.join(", "))
             })?;
@@ -178,15 +255,13 @@ fn job_arguments(kind: &str, table: &toml::Table, dir: &Path) -> anyhow::Result<
     Ok(argv)
 }
 
-/// clap's message without its `error:` prefix and usage footer.
+/// clap's message without its `error:` prefix and usage footer, on one line.
 fn clap_message(e: &clap::Error) -> String {
     let text = e.render().to_string();
-    let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("invalid job");
-    let first = first.trim_start_matches("error: ").to_owned();
-    let tip: Vec<&str> = text.lines().filter(|l| l.trim_start().starts_with("tip:")).collect();
-    if tip.is_empty() {
-        first
-    } else {
-        format!("{first} ({})", tip.join("; ").trim())
-    }
+    text.lines()
+        .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
+        .map(|l| l.trim().trim_start_matches("error: "))
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ")
 }

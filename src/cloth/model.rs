@@ -32,13 +32,24 @@ impl ClothModel {
         let n = mesh.positions.len();
         let bad = |m: String| Error::invalid(&mesh.name, m);
         if mass.len() != n || pinned.len() != n {
-            return Err(bad(format!("{n} particles but {} masses and {} pin flags", mass.len(), pinned.len())));
+            return Err(bad(format!(
+                "{n} particles but {} masses and {} pin flags",
+                mass.len(),
+                pinned.len()
+            )));
         }
         if let Some(i) = mass.iter().position(|m| !(m.is_finite() && *m > 0.0)) {
-            return Err(bad(format!("particle {i} has mass {} (must be positive)", mass[i])));
+            return Err(bad(format!(
+                "particle {i} has mass {} (must be positive)",
+                mass[i]
+            )));
         }
         if let Some(s) = springs.springs.iter().find(|s| {
-            s.a as usize >= n || s.b as usize >= n || s.a == s.b || !(s.stiffness.is_finite() && s.stiffness > 0.0) || !(s.rest > 0.0)
+            s.a as usize >= n
+                || s.b as usize >= n
+                || s.a == s.b
+                || !(s.stiffness.is_finite() && s.stiffness > 0.0)
+                || !(s.rest > 0.0)
         }) {
             return Err(bad(format!("invalid spring {s:?}")));
         }
@@ -47,9 +58,18 @@ impl ClothModel {
         }
         let mut warnings = mesh.warnings.clone();
         if springs.skipped_zero_length > 0 {
-            warnings.push(format!("{} zero-length edges (coincident particles) got no spring", springs.skipped_zero_length));
+            warnings.push(format!(
+                "{} zero-length edges (coincident particles) got no spring",
+                springs.skipped_zero_length
+            ));
         }
-        Ok(ClothModel { springs: springs.springs, mass, pinned, warnings, mesh })
+        Ok(ClothModel {
+            springs: springs.springs,
+            mass,
+            pinned,
+            warnings,
+            mesh,
+        })
     }
 
     /// Number of particles.
@@ -100,7 +120,11 @@ pub fn masses_from_volume(mesh: &Mesh, density: f64) -> Vec<f64> {
 
 fn fill_massless(mass: &mut [f64]) {
     let positive: Vec<f64> = mass.iter().copied().filter(|m| *m > 0.0).collect();
-    let mean = if positive.is_empty() { 1.0 } else { positive.iter().sum::<f64>() / positive.len() as f64 };
+    let mean = if positive.is_empty() {
+        1.0
+    } else {
+        positive.iter().sum::<f64>() / positive.len() as f64
+    };
     for m in mass.iter_mut().filter(|m| **m <= 0.0) {
         *m = mean;
     }

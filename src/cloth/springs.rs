@@ -46,7 +46,13 @@ impl SpringSet {
     fn push(&mut self, positions: &[DVec3], a: u32, b: u32, stiffness: f64, kind: SpringKind) {
         let rest = positions[a as usize].distance(positions[b as usize]);
         if rest > 0.0 {
-            self.springs.push(Spring { a, b, rest, stiffness, kind });
+            self.springs.push(Spring {
+                a,
+                b,
+                rest,
+                stiffness,
+                kind,
+            });
         } else {
             self.skipped_zero_length += 1;
         }
@@ -66,7 +72,10 @@ pub fn surface_springs(mesh: &Mesh, stiffness: f64, bend_stiffness: f64) -> Spri
     let mut edges: BTreeMap<(u32, u32), Vec<u32>> = BTreeMap::new();
     for &[a, b, c] in &mesh.triangles {
         for (p, q, opposite) in [(a, b, c), (b, c, a), (c, a, b)] {
-            edges.entry((p.min(q), p.max(q))).or_default().push(opposite);
+            edges
+                .entry((p.min(q), p.max(q)))
+                .or_default()
+                .push(opposite);
         }
     }
     let mut set = SpringSet::default();
@@ -144,19 +153,42 @@ mod tests {
     #[test]
     fn lab_grid_has_618_springs() {
         let n = 10;
-        let p: Vec<DVec3> = (0..=n).flat_map(|i| (0..=n).map(move |j| DVec3::new(0.2 * i as f64, 1.5, 0.2 * j as f64 - 1.0))).collect();
+        let p: Vec<DVec3> = (0..=n)
+            .flat_map(|i| {
+                (0..=n).map(move |j| DVec3::new(0.2 * i as f64, 1.5, 0.2 * j as f64 - 1.0))
+            })
+            .collect();
         let s = grid_springs(&p, n, 100.0);
         assert_eq!(s.springs.len(), 618);
-        assert_eq!((s.count(SpringKind::Stretch), s.count(SpringKind::Shear), s.count(SpringKind::Bend)), (220, 200, 198));
+        assert_eq!(
+            (
+                s.count(SpringKind::Stretch),
+                s.count(SpringKind::Shear),
+                s.count(SpringKind::Bend)
+            ),
+            (220, 200, 198)
+        );
     }
 
     #[test]
     fn a_quad_has_five_edges_and_no_bend_across_its_diagonal() {
-        let m = Mesh::from_triangles("q".into(), vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y], vec![[0, 1, 2], [0, 2, 3]]);
+        let m = Mesh::from_triangles(
+            "q".into(),
+            vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
         let s = surface_springs(&m, 10.0, 1.0);
         assert_eq!(s.count(SpringKind::Stretch), 5);
-        assert_eq!(s.count(SpringKind::Bend), 1, "the other diagonal (1,3) bends");
-        let bend = s.springs.iter().find(|s| s.kind == SpringKind::Bend).unwrap();
+        assert_eq!(
+            s.count(SpringKind::Bend),
+            1,
+            "the other diagonal (1,3) bends"
+        );
+        let bend = s
+            .springs
+            .iter()
+            .find(|s| s.kind == SpringKind::Bend)
+            .unwrap();
         assert_eq!((bend.a, bend.b), (1, 3));
     }
 }

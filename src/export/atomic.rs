@@ -23,17 +23,20 @@ pub fn write_all_atomically(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
         } else {
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
         }
-        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("output");
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or("output");
         let mut builder = tempfile::Builder::new();
         let prefix = format!(".{name}.");
         builder.prefix(&prefix).suffix(".tmp");
         // Temporaries are private (0600) by default; an export is an ordinary file.
         #[cfg(unix)]
         builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
-        let mut tmp = builder
-            .tempfile_in(&dir)
+        let mut tmp = builder.tempfile_in(&dir).map_err(|e| Error::io(path, e))?;
+        tmp.write_all(bytes)
+            .and_then(|_| tmp.as_file().sync_data())
             .map_err(|e| Error::io(path, e))?;
-        tmp.write_all(bytes).and_then(|_| tmp.as_file().sync_data()).map_err(|e| Error::io(path, e))?;
         staged.push((tmp, path));
     }
     for (tmp, path) in staged {
@@ -69,10 +72,15 @@ mod tests {
         // The second target is a directory: the whole set must fail before any rename.
         let blocked = dir.path().join("b.bin");
         std::fs::create_dir(&blocked).unwrap();
-        let err = write_all_atomically(&[(good.clone(), b"new".to_vec()), (blocked, b"x".to_vec())]);
+        let err =
+            write_all_atomically(&[(good.clone(), b"new".to_vec()), (blocked, b"x".to_vec())]);
         assert!(err.is_err());
         assert_eq!(std::fs::read(&good).unwrap(), b"old");
-        let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().ends_with(".tmp")).collect();
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+            .collect();
         assert!(leftovers.is_empty(), "{leftovers:?}");
     }
 }

@@ -39,7 +39,10 @@ impl GltfBuilder {
     pub fn new() -> Self {
         let mut root = json::Root::default();
         root.asset.generator = Some(format!("scenebake {}", env!("CARGO_PKG_VERSION")));
-        GltfBuilder { root, bin: Vec::new() }
+        GltfBuilder {
+            root,
+            bin: Vec::new(),
+        }
     }
 
     /// Bytes in the binary buffer so far.
@@ -48,7 +51,11 @@ impl GltfBuilder {
     }
 
     /// Appends raw bytes as a buffer view.
-    pub fn view(&mut self, bytes: &[u8], target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
+    pub fn view(
+        &mut self,
+        bytes: &[u8],
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::buffer::View> {
         while self.bin.len() % 4 != 0 {
             self.bin.push(0);
         }
@@ -100,34 +107,83 @@ impl GltfBuilder {
     }
 
     /// A VEC3 float accessor; `min_max` writes per-axis bounds (required for POSITION).
-    pub fn vec3(&mut self, data: &[Vec3], target: Option<json::buffer::Target>, min_max: bool) -> json::Index<json::Accessor> {
+    pub fn vec3(
+        &mut self,
+        data: &[Vec3],
+        target: Option<json::buffer::Target>,
+        min_max: bool,
+    ) -> json::Index<json::Accessor> {
         let bounds = min_max.then(|| bounds_f32(data.iter().map(|v| v.to_array())));
         let bytes = f32_bytes(data.iter().flat_map(|v| v.to_array()));
-        self.accessor(&bytes, data.len(), json::accessor::Type::Vec3, json::accessor::ComponentType::F32, target, bounds, false)
+        self.accessor(
+            &bytes,
+            data.len(),
+            json::accessor::Type::Vec3,
+            json::accessor::ComponentType::F32,
+            target,
+            bounds,
+            false,
+        )
     }
 
     /// A VEC2 float accessor (texture coordinates).
     pub fn vec2(&mut self, data: &[[f32; 2]]) -> json::Index<json::Accessor> {
         let bytes = f32_bytes(data.iter().flatten().copied());
-        self.accessor(&bytes, data.len(), json::accessor::Type::Vec2, json::accessor::ComponentType::F32, Some(json::buffer::Target::ArrayBuffer), None, false)
+        self.accessor(
+            &bytes,
+            data.len(),
+            json::accessor::Type::Vec2,
+            json::accessor::ComponentType::F32,
+            Some(json::buffer::Target::ArrayBuffer),
+            None,
+            false,
+        )
     }
 
     /// A VEC4 float accessor (rotations, weights); `target` for vertex attributes.
-    pub fn vec4(&mut self, data: &[[f32; 4]], target: Option<json::buffer::Target>) -> json::Index<json::Accessor> {
+    pub fn vec4(
+        &mut self,
+        data: &[[f32; 4]],
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::Accessor> {
         let bytes = f32_bytes(data.iter().flatten().copied());
-        self.accessor(&bytes, data.len(), json::accessor::Type::Vec4, json::accessor::ComponentType::F32, target, None, false)
+        self.accessor(
+            &bytes,
+            data.len(),
+            json::accessor::Type::Vec4,
+            json::accessor::ComponentType::F32,
+            target,
+            None,
+            false,
+        )
     }
 
     /// A SCALAR float accessor; animation inputs need `min_max`.
     pub fn scalars(&mut self, data: &[f32], min_max: bool) -> json::Index<json::Accessor> {
         let bounds = min_max.then(|| bounds_f32(data.iter().map(|v| [*v])));
-        self.accessor(&f32_bytes(data.iter().copied()), data.len(), json::accessor::Type::Scalar, json::accessor::ComponentType::F32, None, bounds, false)
+        self.accessor(
+            &f32_bytes(data.iter().copied()),
+            data.len(),
+            json::accessor::Type::Scalar,
+            json::accessor::ComponentType::F32,
+            None,
+            bounds,
+            false,
+        )
     }
 
     /// A MAT4 float accessor (inverse bind matrices, column-major).
     pub fn mat4(&mut self, data: &[[f32; 16]]) -> json::Index<json::Accessor> {
         let bytes = f32_bytes(data.iter().flatten().copied());
-        self.accessor(&bytes, data.len(), json::accessor::Type::Mat4, json::accessor::ComponentType::F32, None, None, false)
+        self.accessor(
+            &bytes,
+            data.len(),
+            json::accessor::Type::Mat4,
+            json::accessor::ComponentType::F32,
+            None,
+            None,
+            false,
+        )
     }
 
     /// Triangle indices, as u16 when they fit, else u32.
@@ -135,11 +191,30 @@ impl GltfBuilder {
         let max = data.iter().copied().max().unwrap_or(0);
         let target = Some(json::buffer::Target::ElementArrayBuffer);
         if max < u16::MAX as u32 {
-            let bytes: Vec<u8> = data.iter().flat_map(|&i| (i as u16).to_le_bytes()).collect();
-            self.accessor(&bytes, data.len(), json::accessor::Type::Scalar, json::accessor::ComponentType::U16, target, None, false)
+            let bytes: Vec<u8> = data
+                .iter()
+                .flat_map(|&i| (i as u16).to_le_bytes())
+                .collect();
+            self.accessor(
+                &bytes,
+                data.len(),
+                json::accessor::Type::Scalar,
+                json::accessor::ComponentType::U16,
+                target,
+                None,
+                false,
+            )
         } else {
             let bytes: Vec<u8> = data.iter().flat_map(|&i| i.to_le_bytes()).collect();
-            self.accessor(&bytes, data.len(), json::accessor::Type::Scalar, json::accessor::ComponentType::U32, target, None, false)
+            self.accessor(
+                &bytes,
+                data.len(),
+                json::accessor::Type::Scalar,
+                json::accessor::ComponentType::U32,
+                target,
+                None,
+                false,
+            )
         }
     }
 
@@ -151,16 +226,27 @@ impl GltfBuilder {
     /// [`Error::Export`] for an unknown extension or an oversized GLB; [`Error::Io`] when writing
     /// fails (any earlier file at `path` is then left untouched).
     pub fn write(mut self, path: &Path) -> Result<Written> {
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
         let glb = match ext.as_deref() {
             Some("glb") => true,
             Some("gltf") => false,
-            _ => return Err(Error::Export { path: path.into(), message: "output must end in .glb or .gltf".into() }),
+            _ => {
+                return Err(Error::Export {
+                    path: path.into(),
+                    message: "output must end in .glb or .gltf".into(),
+                })
+            }
         };
         while self.bin.len() % 4 != 0 {
             self.bin.push(0);
         }
-        let bin_name = format!("{}.bin", path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene"));
+        let bin_name = format!(
+            "{}.bin",
+            path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene")
+        );
         if !self.bin.is_empty() {
             self.root.buffers = vec![json::Buffer {
                 byte_length: USize64::from(self.bin.len()),
@@ -170,17 +256,30 @@ impl GltfBuilder {
                 extras: Default::default(),
             }];
         }
-        let json_bytes = json::serialize::to_vec(&self.root).map_err(|source| Error::Json { path: path.into(), source })?;
+        let json_bytes = json::serialize::to_vec(&self.root).map_err(|error| Error::Json {
+            path: path.into(),
+            error,
+        })?;
         let files: Vec<(PathBuf, Vec<u8>)> = if glb {
             if json_bytes.len() + self.bin.len() + 28 > u32::MAX as usize {
-                return Err(Error::Export { path: path.into(), message: "larger than the 4 GiB a GLB can hold; write .gltf instead".into() });
+                return Err(Error::Export {
+                    path: path.into(),
+                    message: "larger than the 4 GiB a GLB can hold; write .gltf instead".into(),
+                });
             }
             let glb = gltf::binary::Glb {
-                header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
+                header: gltf::binary::Header {
+                    magic: *b"glTF",
+                    version: 2,
+                    length: 0,
+                },
                 json: json_bytes.into(),
                 bin: (!self.bin.is_empty()).then(|| self.bin.into()),
             };
-            let bytes = glb.to_vec().map_err(|e| Error::Export { path: path.into(), message: e.to_string() })?;
+            let bytes = glb.to_vec().map_err(|e| Error::Export {
+                path: path.into(),
+                message: e.to_string(),
+            })?;
             vec![(path.to_path_buf(), bytes)]
         } else {
             // The .bin first: the .gltf that refers to it is renamed into place last.
@@ -194,7 +293,10 @@ impl GltfBuilder {
         };
         let bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
         write_all_atomically(&files)?;
-        Ok(Written { files: files.into_iter().map(|(p, _)| p).collect(), bytes })
+        Ok(Written {
+            files: files.into_iter().map(|(p, _)| p).collect(),
+            bytes,
+        })
     }
 }
 

@@ -54,8 +54,16 @@ pub fn render_frame(mesh: &Mesh, particles: &[Vec3], scratch: &mut Vec<DVec3>) -
     let p64: Vec<DVec3> = particles.iter().map(|p| p.as_dvec3()).collect();
     vertex_normals(&p64, &mesh.triangles, scratch);
     RenderFrame {
-        positions: mesh.render_vertices.iter().map(|v| particles[v.particle as usize]).collect(),
-        normals: mesh.render_vertices.iter().map(|v| scratch[v.particle as usize].as_vec3()).collect(),
+        positions: mesh
+            .render_vertices
+            .iter()
+            .map(|v| particles[v.particle as usize])
+            .collect(),
+        normals: mesh
+            .render_vertices
+            .iter()
+            .map(|v| scratch[v.particle as usize].as_vec3())
+            .collect(),
     }
 }
 
@@ -64,11 +72,21 @@ pub fn render_frame(mesh: &Mesh, particles: &[Vec3], scratch: &mut Vec<DVec3>) -
 ///
 /// # Errors
 /// [`Error::Export`] when the cache does not match the mesh or has no baked frame; write errors.
-pub fn write_morph_gltf(path: &Path, mesh: &Mesh, cache: &FrameCache, options: &MorphOptions) -> Result<Written> {
+pub fn write_morph_gltf(
+    path: &Path,
+    mesh: &Mesh,
+    cache: &FrameCache,
+    options: &MorphOptions,
+) -> Result<Written> {
     if cache.particle_count() != mesh.particle_count() || cache.frame_count() < 2 {
         return Err(Error::Export {
             path: path.into(),
-            message: format!("cache of {} frames × {} particles does not fit a mesh of {} particles", cache.frame_count(), cache.particle_count(), mesh.particle_count()),
+            message: format!(
+                "cache of {} frames × {} particles does not fit a mesh of {} particles",
+                cache.frame_count(),
+                cache.particle_count(),
+                mesh.particle_count()
+            ),
         });
     }
     let mut b = GltfBuilder::new();
@@ -77,12 +95,22 @@ pub fn write_morph_gltf(path: &Path, mesh: &Mesh, cache: &FrameCache, options: &
     let array = Some(json::buffer::Target::ArrayBuffer);
 
     let mut attributes = std::collections::BTreeMap::new();
-    attributes.insert(Valid(json::mesh::Semantic::Positions), b.vec3(&base.positions, array, true));
+    attributes.insert(
+        Valid(json::mesh::Semantic::Positions),
+        b.vec3(&base.positions, array, true),
+    );
     if options.normals {
-        attributes.insert(Valid(json::mesh::Semantic::Normals), b.vec3(&base.normals, array, false));
+        attributes.insert(
+            Valid(json::mesh::Semantic::Normals),
+            b.vec3(&base.normals, array, false),
+        );
     }
     if mesh.has_uvs() {
-        let uvs: Vec<[f32; 2]> = mesh.render_vertices.iter().map(|v| flip_v(v.uv.unwrap_or_default())).collect();
+        let uvs: Vec<[f32; 2]> = mesh
+            .render_vertices
+            .iter()
+            .map(|v| flip_v(v.uv.unwrap_or_default()))
+            .collect();
         attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), b.vec2(&uvs));
     }
     let indices: Vec<u32> = mesh.render_triangles.iter().flatten().copied().collect();
@@ -93,13 +121,27 @@ pub fn write_morph_gltf(path: &Path, mesh: &Mesh, cache: &FrameCache, options: &
     let mut names = Vec::with_capacity(frames - 1);
     for k in 1..frames {
         let f = render_frame(mesh, cache.frame(k), &mut scratch);
-        let dp: Vec<Vec3> = f.positions.iter().zip(&base.positions).map(|(p, q)| *p - *q).collect();
+        let dp: Vec<Vec3> = f
+            .positions
+            .iter()
+            .zip(&base.positions)
+            .map(|(p, q)| *p - *q)
+            .collect();
         let positions = Some(b.vec3(&dp, array, true));
         let normals = options.normals.then(|| {
-            let dn: Vec<Vec3> = f.normals.iter().zip(&base.normals).map(|(n, m)| *n - *m).collect();
+            let dn: Vec<Vec3> = f
+                .normals
+                .iter()
+                .zip(&base.normals)
+                .map(|(n, m)| *n - *m)
+                .collect();
             b.vec3(&dn, array, false)
         });
-        targets.push(json::mesh::MorphTarget { positions, normals, tangents: None });
+        targets.push(json::mesh::MorphTarget {
+            positions,
+            normals,
+            tangents: None,
+        });
         names.push(format!("frame_{k:04}"));
     }
 
@@ -128,14 +170,32 @@ pub fn write_morph_gltf(path: &Path, mesh: &Mesh, cache: &FrameCache, options: &
         }],
         weights: Some(vec![0.0; target_count]),
         extensions: None,
-        extras: Some(serde_json::value::to_raw_value(&serde_json::json!({ "targetNames": names })).map_err(|source| Error::Json { path: path.into(), source })?),
+        extras: Some(
+            serde_json::value::to_raw_value(&serde_json::json!({ "targetNames": names })).map_err(
+                |error| Error::Json {
+                    path: path.into(),
+                    error,
+                },
+            )?,
+        ),
     });
-    let node = b.root.push(json::Node { name: Some(options.name.clone()), mesh: Some(gmesh), ..Default::default() });
-    let scene = b.root.push(json::Scene { name: Some("scenebake".into()), nodes: vec![node], extensions: None, extras: Default::default() });
+    let node = b.root.push(json::Node {
+        name: Some(options.name.clone()),
+        mesh: Some(gmesh),
+        ..Default::default()
+    });
+    let scene = b.root.push(json::Scene {
+        name: Some("scenebake".into()),
+        nodes: vec![node],
+        extensions: None,
+        extras: Default::default(),
+    });
     b.root.scene = Some(scene);
 
     // Weights: all zero at frame 0, one-hot on target k-1 at frame k.
-    let times: Vec<f32> = (0..frames).map(|k| (k as f64 / options.fps) as f32).collect();
+    let times: Vec<f32> = (0..frames)
+        .map(|k| (k as f64 / options.fps) as f32)
+        .collect();
     let mut weights = vec![0.0f32; frames * target_count];
     for k in 1..frames {
         weights[k * target_count + (k - 1)] = 1.0;
@@ -150,11 +210,22 @@ pub fn write_morph_gltf(path: &Path, mesh: &Mesh, cache: &FrameCache, options: &
         name: Some(options.name.clone()),
         channels: vec![json::animation::Channel {
             sampler: json::Index::new(0),
-            target: json::animation::Target { node, path: Valid(json::animation::Property::MorphTargetWeights), extensions: None, extras: Default::default() },
+            target: json::animation::Target {
+                node,
+                path: Valid(json::animation::Property::MorphTargetWeights),
+                extensions: None,
+                extras: Default::default(),
+            },
             extensions: None,
             extras: Default::default(),
         }],
-        samplers: vec![json::animation::Sampler { input, output, interpolation: Valid(interpolation), extensions: None, extras: Default::default() }],
+        samplers: vec![json::animation::Sampler {
+            input,
+            output,
+            interpolation: Valid(interpolation),
+            extensions: None,
+            extras: Default::default(),
+        }],
         extensions: None,
         extras: Default::default(),
     });

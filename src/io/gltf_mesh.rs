@@ -22,19 +22,37 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
     if let Err(e) = std::fs::metadata(path) {
         return Err(Error::io(path, e));
     }
-    let (doc, buffers, _) = gltf::import(path).map_err(|source| Error::Gltf {
+    check_external_files(path)?;
+    let (doc, buffers, _) = gltf::import(path).map_err(|error| Error::Gltf {
         path: path.into(),
-        source,
+        error,
     })?;
     let gmesh = match name {
-        Some(name) => doc.meshes().find(|m| m.name() == Some(name)).ok_or_else(|| {
-            let known: Vec<String> = doc
-                .meshes()
-                .map(|m| m.name().map(str::to_owned).unwrap_or_else(|| format!("#{}", m.index())))
-                .collect();
-            Error::option("--mesh", format!("{}: no mesh named `{name}` (meshes: {})", path.display(), known.join(", ")))
-        })?,
-        None => doc.meshes().next().ok_or_else(|| Error::invalid(path, "the file contains no mesh"))?,
+        Some(name) => doc
+            .meshes()
+            .find(|m| m.name() == Some(name))
+            .ok_or_else(|| {
+                let known: Vec<String> = doc
+                    .meshes()
+                    .map(|m| {
+                        m.name()
+                            .map(str::to_owned)
+                            .unwrap_or_else(|| format!("#{}", m.index()))
+                    })
+                    .collect();
+                Error::option(
+                    "--mesh",
+                    format!(
+                        "{}: no mesh named `{name}` (meshes: {})",
+                        path.display(),
+                        known.join(", ")
+                    ),
+                )
+            })?,
+        None => doc
+            .meshes()
+            .next()
+            .ok_or_else(|| Error::invalid(path, "the file contains no mesh"))?,
     };
     let transform = world_transform_of_mesh(&doc, gmesh.index());
 
@@ -59,7 +77,13 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
         for (k, p) in positions.enumerate() {
             let p = transform.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
             if !p.is_finite() {
-                return Err(Error::invalid(path, format!("mesh {}: vertex {k} has a non-finite position", gmesh.index())));
+                return Err(Error::invalid(
+                    path,
+                    format!(
+                        "mesh {}: vertex {k} has a non-finite position",
+                        gmesh.index()
+                    ),
+                ));
             }
             let key = p.to_array().map(f64::to_bits);
             let next = mesh.positions.len() as u32;
@@ -70,7 +94,10 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
             mesh.render_vertices.push(RenderVertex {
                 particle,
                 // glTF's v points down; the mesh model keeps OBJ's v-up convention.
-                uv: uvs.as_ref().and_then(|t| t.get(k)).map(|&[u, v]| [u, 1.0 - v]),
+                uv: uvs
+                    .as_ref()
+                    .and_then(|t| t.get(k))
+                    .map(|&[u, v]| [u, 1.0 - v]),
             });
         }
         let count = mesh.render_vertices.len() as u32 - base;
@@ -79,26 +106,70 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
             None => (0..count).collect(),
         };
         if let Some(bad) = indices.iter().find(|&&i| i >= count) {
-            return Err(Error::invalid(path, format!("mesh {}: index {bad} out of range ({count} vertices)", gmesh.index())));
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "mesh {}: index {bad} out of range ({count} vertices)",
+                    gmesh.index()
+                ),
+            ));
         }
         for t in indices.chunks_exact(3) {
             let r = [t[0] + base, t[1] + base, t[2] + base];
             mesh.render_triangles.push(r);
-            mesh.triangles.push(r.map(|i| mesh.render_vertices[i as usize].particle));
+            mesh.triangles
+                .push(r.map(|i| mesh.render_vertices[i as usize].particle));
         }
     }
     if skipped_primitives > 0 {
-        mesh.warnings.push(format!("{skipped_primitives} non-triangle primitives skipped"));
+        mesh.warnings.push(format!(
+            "{skipped_primitives} non-triangle primitives skipped"
+        ));
     }
     mesh.file_index = (0..mesh.positions.len() as u32).collect();
-    let dropped = drop_degenerate(&mesh.positions, &mut mesh.triangles, Some(&mut mesh.render_triangles));
+    let dropped = drop_degenerate(
+        &mesh.positions,
+        &mut mesh.triangles,
+        Some(&mut mesh.render_triangles),
+    );
     if dropped > 0 {
-        mesh.warnings.push(format!("{dropped} degenerate triangles skipped"));
+        mesh.warnings
+            .push(format!("{dropped} degenerate triangles skipped"));
     }
     if mesh.triangles.is_empty() {
-        return Err(Error::invalid(path, format!("mesh {} has no usable triangles", gmesh.index())));
+        return Err(Error::invalid(
+            path,
+            format!("mesh {} has no usable triangles", gmesh.index()),
+        ));
     }
     Ok(mesh)
+}
+
+/// Names a missing external buffer or image before the importer fails with a bare "not found".
+fn check_external_files(path: &Path) -> Result<()> {
+    let Ok(gltf) = gltf::Gltf::open(path) else {
+        return Ok(()); // gltf::import reports the parse error itself
+    };
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let uris = gltf
+        .buffers()
+        .filter_map(|b| match b.source() {
+            gltf::buffer::Source::Uri(u) => Some(("buffer", b.index(), u)),
+            gltf::buffer::Source::Bin => None,
+        })
+        .chain(gltf.images().filter_map(|i| match i.source() {
+            gltf::image::Source::Uri { uri, .. } => Some(("image", i.index(), uri)),
+            gltf::image::Source::View { .. } => None,
+        }));
+    for (what, index, uri) in uris {
+        if !uri.starts_with("data:") && !dir.join(uri).exists() {
+            return Err(Error::invalid(
+                path,
+                format!("{what} {index} refers to `{uri}`, which does not exist (expected beside the .gltf, at {})", dir.join(uri).display()),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// World transform of the first node (in any scene) that instantiates mesh `mesh_index`;

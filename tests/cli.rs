@@ -1,0 +1,300 @@
+//! The command line as a user meets it: every bad input gets a clear error naming the file (or
+//! option, or scene job) and exits with a failure code, never a panic.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures")
+        .join(name)
+}
+
+fn mesh(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("meshes")
+        .join(name)
+}
+
+/// Runs scenebake; returns (exit code, stderr).
+fn scenebake<I, S>(args: I) -> (i32, String)
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    let out = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Asserts a failure whose message has every one of `words` and no panic.
+#[track_caller]
+fn fails_with(args: &[&str], words: &[&str]) {
+    let (code, err) = scenebake(args);
+    assert_ne!(code, 0, "{args:?} should fail");
+    assert!(
+        !err.contains("panicked") && !err.contains("RUST_BACKTRACE"),
+        "{args:?} panicked: {err}"
+    );
+    for w in words {
+        assert!(err.contains(w), "{args:?}: message lacks `{w}`:\n{err}");
+    }
+}
+
+fn out_path(dir: &tempfile::TempDir) -> String {
+    dir.path().join("out.glb").to_string_lossy().into_owned()
+}
+
+#[test]
+fn unreadable_inputs_name_the_file_and_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = out_path(&dir);
+    let f = |n: &str| fixture(n).to_string_lossy().into_owned();
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            "/nonexistent/cloth.obj".into(),
+            vec!["/nonexistent/cloth.obj", "No such file"],
+        ),
+        (
+            dir.path().join("adir.obj").to_string_lossy().into_owned(),
+            vec!["adir.obj", "directory"],
+        ),
+        (f("empty.obj"), vec!["empty.obj", "no faces"]),
+        (f("garbage.obj"), vec!["garbage.obj", "not a text file"]),
+        (
+            f("index_out_of_range.obj"),
+            vec!["index_out_of_range.obj:4", "out of range"],
+        ),
+        (f("index_zero.obj"), vec!["index_zero.obj:4", "index 0"]),
+        (f("nan.obj"), vec!["nan.obj:2", "non-finite"]),
+        (f("inf.obj"), vec!["inf.obj:2", "non-finite"]),
+        (f("no_faces.obj"), vec!["no_faces.obj", "no faces"]),
+        (f("truncated.glb"), vec!["truncated.glb"]),
+        (
+            f("missing_bin.gltf"),
+            vec!["missing_bin.gltf", "missing.bin"],
+        ),
+        (f("invalid_json.gltf"), vec!["invalid_json.gltf", "EOF"]),
+        (f("short.tet"), vec!["short.tet:4", "3 of the 10 points"]),
+        (
+            f("tet_bad_index.tet"),
+            vec!["tet_bad_index.tet:6", "out of range"],
+        ),
+        (
+            mesh("cube.mtl").to_string_lossy().into_owned(),
+            vec!["cube.mtl", "unknown mesh format"],
+        ),
+    ];
+    std::fs::create_dir(dir.path().join("adir.obj")).unwrap();
+    for (input, words) in cases {
+        fails_with(&["cloth", &input, "-o", &out, "--frames", "2"], &words);
+    }
+    assert!(!Path::new(&out).exists(), "no output from failed bakes");
+}
+
+#[test]
+fn degenerate_faces_and_zero_length_edges_are_skipped_with_warnings() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("r.json");
+    for (file, warning) in [
+        ("degenerate.obj", "degenerate"),
+        ("zero_length.obj", "zero-length"),
+    ] {
+        let (code, err) = scenebake([
+            "cloth",
+            fixture(file).to_str().unwrap(),
+            "-o",
+            &out_path(&dir),
+            "--frames",
+            "3",
+            "--pin",
+            "index:0",
+            "--report",
+            report.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{file}: {err}");
+        let r: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        let warnings = r["warnings"].to_string();
+        assert!(warnings.contains(warning), "{file}: {warnings}");
+    }
+}
+
+#[test]
+fn bad_option_values_name_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = out_path(&dir);
+    let plane = mesh("plane_30x30.obj");
+    let plane = plane.to_str().unwrap();
+    let cases: &[(&[&str], &[&str])] = &[
+        (&["--pin", "corner"], &["--pin", "expected index"]),
+        (&["--pin", "box:1,2"], &["--pin", "6 comma-separated"]),
+        (
+            &["--pin", "box:5,5,5,6,6,6"],
+            &["--pin box:5,5,5,6,6,6", "selects no particle", "spans"],
+        ),
+        (&["--pin", "index:99999"], &["--pin", "out of range"]),
+        (&["--pin", "group:nope"], &["--pin", "no group `nope`"]),
+        (&["--frames", "0"], &["--frames", "at least 1"]),
+        (&["--frames", "-3"], &["--frames"]),
+        (&["--fps", "0"], &["--fps", "positive"]),
+        (&["--fps", "-30"], &["--fps", "positive"]),
+        (&["--stiffness", "-1"], &["--stiffness", "positive"]),
+        (&["--stiffness", "nan"], &["--stiffness", "positive"]),
+        (&["--mass", "0"], &["--mass", "positive"]),
+        (&["--density", "-2"], &["--density", "positive"]),
+        (&["--mass", "1", "--density", "1"], &["--mass", "not both"]),
+        (&["--iterations", "0"], &["--iterations", "at least 1"]),
+        (&["--substeps", "0"], &["--substeps", "at least 1"]),
+        (
+            &["--gravity", "0,-9.81"],
+            &["--gravity", "3 comma-separated"],
+        ),
+        (
+            &["--gravity", "a,b,c"],
+            &["--gravity", "not a finite number"],
+        ),
+        (&["--solver", "magic"], &["--solver", "magic"]),
+        (
+            &["--object", "nope"],
+            &["--object", "no object or group named `nope`"],
+        ),
+    ];
+    for (extra, words) in cases {
+        let mut args = vec!["cloth", plane, "-o", &out, "--frames", "2"];
+        if extra.contains(&"--frames") {
+            args.truncate(4);
+        }
+        args.extend_from_slice(extra);
+        fails_with(&args, words);
+    }
+}
+
+#[test]
+fn unwritable_outputs_are_errors_naming_the_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let blocker = dir.path().join("file");
+    std::fs::write(&blocker, b"x").unwrap();
+    let inside_a_file = blocker.join("out.glb");
+    fails_with(
+        &[
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--frames",
+            "2",
+            "-o",
+            inside_a_file.to_str().unwrap(),
+        ],
+        &["file"],
+    );
+    let a_dir = dir.path().join("d.glb");
+    std::fs::create_dir(&a_dir).unwrap();
+    fails_with(
+        &[
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--frames",
+            "2",
+            "-o",
+            a_dir.to_str().unwrap(),
+        ],
+        &["d.glb", "directory"],
+    );
+    fails_with(
+        &[
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--frames",
+            "2",
+            "-o",
+            dir.path().join("x.fbx").to_str().unwrap(),
+        ],
+        &["x.fbx", ".glb or .gltf"],
+    );
+}
+
+#[test]
+fn scene_file_errors_name_the_file_the_job_and_the_key() {
+    let cases: &[(&str, &[&str])] = &[
+        (
+            "scene_unknown_key.toml",
+            &[
+                "scene_unknown_key.toml",
+                "[[cloth]] job 1",
+                "unknown key `framez`",
+            ],
+        ),
+        (
+            "scene_wrong_type.toml",
+            &["scene_wrong_type.toml", "job 1", "ten", "--frames"],
+        ),
+        (
+            "scene_missing_output.toml",
+            &["scene_missing_output.toml", "job 1", "--output"],
+        ),
+        ("scene_bad_toml.toml", &["scene_bad_toml.toml", "line 6"]),
+        (
+            "scene_unknown_table.toml",
+            &["scene_unknown_table.toml", "unknown table `cloths`"],
+        ),
+    ];
+    for (file, words) in cases {
+        fails_with(&["run", fixture(file).to_str().unwrap()], words);
+    }
+    fails_with(
+        &["run", "/nonexistent/scene.toml"],
+        &["/nonexistent/scene.toml"],
+    );
+}
+
+#[test]
+fn a_scene_runs_its_jobs_and_reports() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[[cloth]]\nname = \"lab\"\npreset = \"lab-cloth\"\nframes = 5\noutput = \"out/lab.glb\"\n\n[[cloth]]\nname = \"plane\"\ninput = \"{}\"\nframes = 3\npin = [\"box:-1,-1,-1,1,1,-0.49\"]\nbend_stiffness = 0\noutput = \"out/plane.gltf\"\n",
+            mesh("plane_30x30.obj").display()
+        ),
+    )
+    .unwrap();
+    let report = dir.path().join("run.json");
+    let (code, err) = scenebake([
+        "run",
+        scene.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        dir.path().join("out/lab.glb").exists()
+            && dir.path().join("out/plane.gltf").exists()
+            && dir.path().join("out/plane.bin").exists()
+    );
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let jobs = r["jobs"].as_array().unwrap();
+    assert_eq!(jobs.len(), 2);
+    assert_eq!(jobs[1]["report"]["frames"], 3);
+    assert_eq!(
+        jobs[1]["report"]["springs_by_kind"]["bend"], 0,
+        "bend_stiffness = 0 is honoured"
+    );
+    // --only runs one job.
+    std::fs::remove_file(dir.path().join("out/lab.glb")).unwrap();
+    let (code, err) = scenebake(["run", scene.to_str().unwrap(), "--only", "lab"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(dir.path().join("out/lab.glb").exists());
+    fails_with(
+        &["run", scene.to_str().unwrap(), "--only", "nope"],
+        &["no job named `nope`", "lab, plane"],
+    );
+}
