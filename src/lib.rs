@@ -9,6 +9,7 @@ pub mod bake;
 pub mod cloth;
 pub mod error;
 pub mod export;
+pub mod inspect;
 pub mod io;
 pub mod mesh;
 pub mod spec;

@@ -298,3 +298,49 @@ fn a_scene_runs_its_jobs_and_reports() {
         &["no job named `nope`", "lab, plane"],
     );
 }
+
+#[test]
+fn inspect_describes_a_bake_and_flags_broken_invariants() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab.glb");
+    let (code, err) = scenebake([
+        "-q",
+        "cloth",
+        "--preset",
+        "lab-cloth",
+        "--frames",
+        "6",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let o = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+        .args(["inspect", "--json", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["meshes"][0]["vertices"], 121);
+    assert_eq!(v["meshes"][0]["triangles"], 200);
+    assert_eq!(v["meshes"][0]["morph_targets"], 6);
+    assert_eq!(v["animations"][0]["channels"][0]["keys"], 7);
+    assert_eq!(v["animations"][0]["channels"][0]["path"], "weights");
+    assert_eq!(v["bytes"], std::fs::metadata(&out).unwrap().len());
+    assert!(v["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|c| c["ok"] == true));
+
+    let broken = fixture("broken_invariants.gltf");
+    fails_with(
+        &["inspect", broken.to_str().unwrap()],
+        &[
+            "broken_invariants.gltf",
+            "3 invariant check(s) failed",
+            "morph POSITION has min/max",
+            "targetNames count (2)",
+            "weights: 1 values = 2 keys × 1 targets",
+        ],
+    );
+}

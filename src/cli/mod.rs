@@ -2,6 +2,7 @@
 //! library.
 
 pub mod cloth;
+pub mod inspect;
 pub mod progress;
 pub mod scene;
 
@@ -29,6 +30,8 @@ pub enum Command {
     Cloth(cloth::ClothArgs),
     /// Run the jobs of a scene file (TOML) in order.
     Run(scene::RunArgs),
+    /// Describe a glTF/GLB file and check the invariants scenebake's exports promise.
+    Inspect(inspect::InspectArgs),
 }
 
 /// One finished job, for summaries.
@@ -61,6 +64,7 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Run(args) => scene::run(args, cli.quiet),
+        Command::Inspect(args) => inspect::run(args),
     }
 }
 

@@ -63,7 +63,7 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
         let label = format!("[{}/{}] {} {}", i + 1, selected.len(), job.kind, job.name);
         let outcome = match &job.command {
             Command::Cloth(a) => run_cloth(a, &label, quiet),
-            Command::Run(_) => unreachable!("scene jobs are cloth or ik"),
+            Command::Run(_) | Command::Inspect(_) => unreachable!("scene jobs are cloth or ik"),
         }
         .with_context(|| {
             format!(
