@@ -74,7 +74,15 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
             )
         })?;
         if !quiet {
-            eprintln!("{label}: {}", summary_line(&outcome));
+            eprintln!(
+                "[{}/{}] {}",
+                i + 1,
+                selected.len(),
+                summary_line(&Outcome {
+                    name: job.name.clone(),
+                    ..outcome.clone()
+                })
+            );
         }
         outcomes.push(Outcome {
             name: job.name.clone(),
@@ -227,7 +235,7 @@ fn job_arguments(kind: &str, table: &toml::Table, dir: &Path) -> anyhow::Result<
         };
         for v in values {
             let text = match v {
-                toml::Value::String(s) if PATH_KEYS.contains(&key.as_str()) => dir.join(s).into_os_string(),
+                toml::Value::String(s) if PATH_KEYS.contains(&key.as_str()) => lexically_normal(&dir.join(s)).into_os_string(),
                 toml::Value::String(s) => s.into(),
                 toml::Value::Integer(i) => i.to_string().into(),
                 toml::Value::Float(f) => f.to_string().into(),
@@ -253,6 +261,27 @@ fn job_arguments(kind: &str, table: &toml::Table, dir: &Path) -> anyhow::Result<
         argv.extend(positional);
     }
     Ok(argv)
+}
+
+/// `a/b/../c` → `a/c`, without touching the file system (the output may not exist yet).
+fn lexically_normal(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir
+                if matches!(out.components().next_back(), Some(Component::Normal(_))) =>
+            {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    if out.as_os_str().is_empty() {
+        out.push(".");
+    }
+    out
 }
 
 /// clap's message without its `error:` prefix and usage footer, on one line.
