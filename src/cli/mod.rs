@@ -27,7 +27,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Simulate a cloth or soft body and write it as a morph-target glTF.
-    Cloth(cloth::ClothArgs),
+    Cloth(Box<cloth::ClothArgs>),
     /// Run the jobs of a scene file (TOML) in order.
     Run(scene::RunArgs),
     /// Describe a glTF/GLB file and check the invariants scenebake's exports promise.

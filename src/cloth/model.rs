@@ -49,7 +49,8 @@ impl ClothModel {
                 || s.b as usize >= n
                 || s.a == s.b
                 || !(s.stiffness.is_finite() && s.stiffness > 0.0)
-                || !(s.rest > 0.0)
+                || s.rest.is_nan()
+                || s.rest <= 0.0
         }) {
             return Err(bad(format!("invalid spring {s:?}")));
         }

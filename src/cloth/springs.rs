@@ -125,13 +125,13 @@ pub fn grid_springs(positions: &[DVec3], n: u32, stiffness: f64) -> SpringSet {
     let mut add = |a, b, kind| set.push(positions, a, b, stiffness, kind);
     for i in 0..=n {
         for j in 0..=n {
-            if i + 1 <= n {
+            if i < n {
                 add(id(i, j), id(i + 1, j), SpringKind::Stretch);
             }
-            if j + 1 <= n {
+            if j < n {
                 add(id(i, j), id(i, j + 1), SpringKind::Stretch);
             }
-            if i + 1 <= n && j + 1 <= n {
+            if i < n && j < n {
                 add(id(i, j), id(i + 1, j + 1), SpringKind::Shear);
                 add(id(i + 1, j), id(i, j + 1), SpringKind::Shear);
             }
