@@ -344,3 +344,76 @@ fn inspect_describes_a_bake_and_flags_broken_invariants() {
         ],
     );
 }
+
+/// Scene files built from random keys and values: `run` answers with an error or a bake, never a
+/// panic.
+#[test]
+fn random_scene_files_never_panic() {
+    use proptest::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let keys = [
+        "pin",
+        "gravity",
+        "stiffness",
+        "damping",
+        "fps",
+        "solver",
+        "interpolation",
+        "normals",
+        "mass",
+        "density",
+        "substeps",
+        "iterations",
+        "object",
+        "bogus",
+        "resolution",
+        "input",
+    ];
+    let value = prop_oneof![
+        Just("\"box:-1,-1,-1,1,1,1\"".to_string()),
+        Just("[\"index:0\", \"index:3\"]".to_string()),
+        Just("\"0,-9.81,0\"".to_string()),
+        (-5i64..50).prop_map(|i| i.to_string()),
+        (-2.0f64..100.0).prop_map(|f| format!("{f:.3}")),
+        Just("true".to_string()),
+        Just("{ a = 1 }".to_string()),
+        Just("\"off\"".to_string()),
+        "\"[ -~&&[^\"\\\\]]{0,12}\"",
+    ];
+    let strategy = prop::collection::vec((0..keys.len(), value), 0..4);
+    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig::with_cases(48));
+    let scene = dir.path().join("s.toml");
+    runner
+        .run(&strategy, |entries| {
+            let mut text =
+                String::from("[[cloth]]\npreset = \"lab-cloth\"\nframes = 2\noutput = \"o.glb\"\n");
+            let mut seen = std::collections::HashSet::new();
+            for (k, v) in entries {
+                let key = keys[k];
+                if seen.insert(key) {
+                    // Keep bakes tiny: a random resolution could ask for millions of particles.
+                    let v = if key == "resolution" {
+                        "4".to_string()
+                    } else {
+                        v
+                    };
+                    text.push_str(&format!("{key} = {v}\n"));
+                }
+            }
+            std::fs::write(&scene, &text).unwrap();
+            let (code, err) = scenebake(["-q", "run", scene.to_str().unwrap()]);
+            prop_assert!(
+                code == 0 || code == 1 || code == 2,
+                "exit {code} for\n{text}\n{err}"
+            );
+            prop_assert!(!err.contains("panicked"), "panic for\n{text}\n{err}");
+            if code != 0 {
+                prop_assert!(
+                    err.contains("s.toml"),
+                    "error does not name the scene file:\n{text}\n{err}"
+                );
+            }
+            Ok(())
+        })
+        .unwrap();
+}

@@ -1,0 +1,164 @@
+//! Property-based fuzzing of the loaders and option parsers: whatever the input, they return a
+//! value that satisfies the model's invariants or an error, and never panic. Runs a bounded
+//! number of cases in `cargo test`; raise PROPTEST_CASES to fuzz longer.
+
+use std::path::Path;
+
+use proptest::prelude::*;
+use scenebake::cloth::pins::PinSpec;
+use scenebake::io::obj::{parse_obj, ObjOptions};
+use scenebake::io::tet::parse_tet;
+use scenebake::mesh::Mesh;
+
+fn number() -> impl Strategy<Value = String> {
+    prop_oneof![
+        (-3.0f64..3.0).prop_map(|v| format!("{v}")),
+        Just("0".to_string()),
+        Just("-0.000000".to_string()),
+        Just("nan".to_string()),
+        Just("1e309".to_string()),
+        Just("inf".to_string()),
+        "[0-9a-z.+-]{0,6}",
+    ]
+}
+
+fn index() -> impl Strategy<Value = String> {
+    prop_oneof![
+        (-12i64..12).prop_map(|i| i.to_string()),
+        Just("".to_string()),
+        "[0-9/]{1,5}",
+        Just("99999999999".to_string())
+    ]
+}
+
+fn obj_line() -> impl Strategy<Value = String> {
+    prop_oneof![
+        4 => (number(), number(), number()).prop_map(|(a, b, c)| format!("v {a} {b} {c}")),
+        1 => (number(), number()).prop_map(|(a, b)| format!("vt {a} {b}")),
+        1 => (number(), number(), number()).prop_map(|(a, b, c)| format!("vn {a} {b} {c}")),
+        4 => prop::collection::vec((index(), index()), 0..6).prop_map(|c| {
+            let corners: Vec<String> = c.into_iter().map(|(p, t)| if t.is_empty() { p } else { format!("{p}/{t}") }).collect();
+            format!("f {}", corners.join(" "))
+        }),
+        1 => "[a-z ]{0,8}".prop_map(|n| format!("g {n}")),
+        1 => "[a-z]{0,5}".prop_map(|n| format!("o {n}")),
+        1 => "[ -~]{0,20}",
+    ]
+}
+
+/// What every successfully loaded mesh must satisfy.
+fn check_mesh(m: &Mesh) {
+    let n = m.positions.len() as u32;
+    assert!(m.positions.iter().all(|p| p.is_finite()));
+    assert!(!m.triangles.is_empty());
+    assert_eq!(m.triangles.len(), m.render_triangles.len());
+    for (t, r) in m.triangles.iter().zip(&m.render_triangles) {
+        assert!(t.iter().all(|&i| i < n));
+        assert!(
+            t[0] != t[1] && t[1] != t[2] && t[0] != t[2],
+            "degenerate triangle kept"
+        );
+        for (k, &rv) in r.iter().enumerate() {
+            assert_eq!(m.render_vertices[rv as usize].particle, t[k]);
+        }
+    }
+    assert!(m.tets.iter().flatten().all(|&i| i < n));
+    assert_eq!(m.file_index.len(), m.positions.len());
+}
+
+/// `default` cases, or PROPTEST_CASES when set (for long fuzzing runs).
+fn cases(default: u32) -> ProptestConfig {
+    ProptestConfig::with_cases(
+        std::env::var("PROPTEST_CASES")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default),
+    )
+}
+
+proptest! {
+    #![proptest_config(cases(512))]
+
+    #[test]
+    fn obj_reader_never_panics(lines in prop::collection::vec(obj_line(), 0..40)) {
+        let text = lines.join("\n");
+        if let Ok(m) = parse_obj(&text, Path::new("fuzz.obj"), &ObjOptions::default()) {
+            check_mesh(&m);
+        }
+    }
+
+    #[test]
+    fn obj_reader_survives_arbitrary_bytes(bytes in prop::collection::vec(any::<u8>(), 0..400)) {
+        let text = String::from_utf8_lossy(&bytes);
+        if let Ok(m) = parse_obj(&text, Path::new("fuzz.obj"), &ObjOptions::default()) {
+            check_mesh(&m);
+        }
+    }
+
+    #[test]
+    fn tet_reader_never_panics(n in 0usize..7, m in 0usize..4, body in prop::collection::vec(prop_oneof![number(), index()], 0..50), breaks in prop::collection::vec(0usize..6, 0..50)) {
+        let mut text = format!("tet {n} {m}\n");
+        for (w, b) in body.iter().zip(breaks.iter().chain(std::iter::repeat(&1))) {
+            text.push_str(w);
+            text.push(if *b == 0 { '\n' } else { ' ' });
+        }
+        if let Ok(mesh) = parse_tet(&text, Path::new("fuzz.tet")) {
+            check_mesh(&mesh);
+        }
+    }
+
+    #[test]
+    fn pin_and_vector_parsers_never_panic(s in "[ -~]{0,30}") {
+        let _ = s.parse::<PinSpec>();
+        let _ = scenebake::spec::parse_vec3("--gravity", &s);
+        let _ = scenebake::spec::parse_numbers::<6>("--pin", &s, "box");
+    }
+
+    #[test]
+    fn valid_pin_specs_round_trip(kind in 0usize..3, nums in prop::collection::vec(-5.0f64..5.0, 6), idx in prop::collection::vec(0u32..1000, 1..5), name in "[a-z_]{1,8}") {
+        let spec = match kind {
+            0 => format!("index:{}", idx.iter().map(u32::to_string).collect::<Vec<_>>().join(",")),
+            1 => format!("box:{}", nums.iter().map(f64::to_string).collect::<Vec<_>>().join(",")),
+            _ => format!("group:{name}"),
+        };
+        let parsed: PinSpec = spec.parse().unwrap();
+        let again: PinSpec = parsed.to_string().parse().unwrap();
+        prop_assert_eq!(parsed, again);
+    }
+}
+
+/// Random corruptions of a real GLB: the glTF mesh loader errors or loads, never panics.
+#[test]
+fn gltf_loader_survives_corrupted_files() {
+    let original =
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/Fox.glb")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("fuzz.glb");
+    let mut runner = proptest::test_runner::TestRunner::new(cases(160));
+    let strategy = (
+        prop::collection::vec((0usize..original.len(), any::<u8>()), 1..8),
+        prop::option::of(0usize..original.len()),
+    );
+    runner
+        .run(&strategy, |(edits, truncate)| {
+            let mut bytes = original.clone();
+            for (at, value) in edits {
+                // Bias edits towards the header and JSON chunk, where structure lives.
+                let at = if value % 2 == 0 {
+                    at % 4096.min(bytes.len())
+                } else {
+                    at
+                };
+                bytes[at] = value;
+            }
+            if let Some(t) = truncate.filter(|t| t % 3 == 0) {
+                bytes.truncate(t);
+            }
+            std::fs::write(&path, &bytes).unwrap();
+            if let Ok(m) = scenebake::io::gltf_mesh::load_gltf_mesh(&path, None) {
+                check_mesh(&m);
+            }
+            Ok(())
+        })
+        .unwrap();
+}
