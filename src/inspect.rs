@@ -97,10 +97,7 @@ fn name_or_index(name: Option<&str>, index: usize) -> String {
 /// [`Error::Io`] or [`Error::Gltf`] when the file cannot be loaded.
 pub fn inspect(path: &Path) -> Result<Inspection> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
-    let (doc, buffers, _) = gltf::import(path).map_err(|error| Error::Gltf {
-        path: path.into(),
-        error,
-    })?;
+    let (doc, buffers, _) = crate::io::gltf_import::import_gltf(path)?;
     let dir = path.parent().unwrap_or(Path::new(""));
     let external: u64 = doc
         .buffers()

@@ -80,6 +80,8 @@ fn unreadable_inputs_name_the_file_and_the_problem() {
             vec!["missing_bin.gltf", "missing.bin"],
         ),
         (f("invalid_json.gltf"), vec!["invalid_json.gltf", "EOF"]),
+        // Found by fuzzing: the gltf crate's validator panicked on this one.
+        (f("position_accessor_out_of_range.gltf"), vec!["position_accessor_out_of_range.gltf", "meshes[0].primitives[0].attributes.POSITION refers to accessor 0, but the file has 0 accessors"]),
         (f("short.tet"), vec!["short.tet:4", "3 of the 10 points"]),
         (
             f("tet_bad_index.tet"),
@@ -416,4 +418,17 @@ fn random_scene_files_never_panic() {
             Ok(())
         })
         .unwrap();
+}
+
+#[test]
+fn inspect_rejects_a_file_the_gltf_crate_would_panic_on() {
+    fails_with(
+        &[
+            "inspect",
+            fixture("position_accessor_out_of_range.gltf")
+                .to_str()
+                .unwrap(),
+        ],
+        &["refers to accessor 0, but the file has 0 accessors"],
+    );
 }

@@ -10,6 +10,7 @@ use std::path::Path;
 
 use glam::{DMat4, DVec3, Mat4};
 
+use super::gltf_import::import_gltf;
 use crate::error::{Error, Result};
 use crate::mesh::{drop_degenerate, Mesh, RenderVertex};
 
@@ -19,14 +20,7 @@ use crate::mesh::{drop_degenerate, Mesh, RenderVertex};
 /// [`Error::Gltf`] when the file cannot be loaded; [`Error::InvalidInput`] when the mesh is
 /// missing, has no triangles, or holds non-finite positions.
 pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
-    if let Err(e) = std::fs::metadata(path) {
-        return Err(Error::io(path, e));
-    }
-    check_external_files(path)?;
-    let (doc, buffers, _) = gltf::import(path).map_err(|error| Error::Gltf {
-        path: path.into(),
-        error,
-    })?;
+    let (doc, buffers, _) = import_gltf(path)?;
     let gmesh = match name {
         Some(name) => doc
             .meshes()
@@ -143,33 +137,6 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
         ));
     }
     Ok(mesh)
-}
-
-/// Names a missing external buffer or image before the importer fails with a bare "not found".
-fn check_external_files(path: &Path) -> Result<()> {
-    let Ok(gltf) = gltf::Gltf::open(path) else {
-        return Ok(()); // gltf::import reports the parse error itself
-    };
-    let dir = path.parent().unwrap_or(Path::new(""));
-    let uris = gltf
-        .buffers()
-        .filter_map(|b| match b.source() {
-            gltf::buffer::Source::Uri(u) => Some(("buffer", b.index(), u)),
-            gltf::buffer::Source::Bin => None,
-        })
-        .chain(gltf.images().filter_map(|i| match i.source() {
-            gltf::image::Source::Uri { uri, .. } => Some(("image", i.index(), uri)),
-            gltf::image::Source::View { .. } => None,
-        }));
-    for (what, index, uri) in uris {
-        if !uri.starts_with("data:") && !dir.join(uri).exists() {
-            return Err(Error::invalid(
-                path,
-                format!("{what} {index} refers to `{uri}`, which does not exist (expected beside the .gltf, at {})", dir.join(uri).display()),
-            ));
-        }
-    }
-    Ok(())
 }
 
 /// World transform of the first node (in any scene) that instantiates mesh `mesh_index`;
