@@ -27,7 +27,8 @@ Options (after the `--`):
   --render OUT.png          render a still with the Workbench engine, camera
                             framing every mesh object from a 3/4 view; with
                             several FILEs, "{stem}" in OUT is replaced by the
-                            file's stem (otherwise "_<stem>" is added)
+                            file's stem (otherwise "_<stem>" is added; a stem
+                            shared by two files gets "_<ext>" as well)
   --resolution WxH          render size (default 480x270)
   --frame F                 frame to evaluate and render (default: the middle
                             of the scene's frame range, which is fitted to the
@@ -423,21 +424,35 @@ def render_still(path, width, height, mesh_objs):
             f"bbox size ({extent.x:.3g}, {extent.y:.3g}, {extent.z:.3g}), camera distance {dist:.3g})")
 
 
-def render_path(template, file, several):
-    stem = os.path.splitext(os.path.basename(file))[0]
-    if "{stem}" in template:
-        return template.replace("{stem}", stem)
-    if not several:
-        return template
-    base, ext = os.path.splitext(template)
-    return f"{base}_{stem}{ext or '.png'}"
+def render_paths(template, files):
+    """Output path per input file for --render.
+
+    One file: `template` as given. Several: "{stem}" in `template` is replaced
+    by each file's stem, or "_<stem>" is added before the extension; stems
+    shared by several files (cloth.glb, cloth.gltf) get their extension too.
+    """
+    stems = [os.path.splitext(os.path.basename(f)) for f in files]
+    counts = {}
+    for stem, _ext in stems:
+        counts[stem] = counts.get(stem, 0) + 1
+    out = []
+    for stem, ext in stems:
+        tag = stem if counts[stem] == 1 else f"{stem}_{ext.lstrip('.')}"
+        if "{stem}" in template:
+            out.append(template.replace("{stem}", tag))
+        elif len(files) == 1:
+            out.append(template)
+        else:
+            base, png = os.path.splitext(template)
+            out.append(f"{base}_{tag}{png or '.png'}")
+    return out
 
 
 # --------------------------------------------------------------------------
 # Main
 
 
-def check_file(path, args, several):
+def check_file(path, args, render_out):
     """Import one file and check it; returns (summary, failures)."""
     if not os.path.isfile(path):
         return None, ["file not found"]
@@ -479,10 +494,9 @@ def check_file(path, args, several):
     summary = summarize(objects)
     summary += f"; scene frames {scene.frame_start}-{scene.frame_end}, at frame {frame}"
     failures = check_expectations(objects, args, auto)
-    if args.render:
-        out = render_path(args.render, path, several)
+    if render_out:
         try:
-            summary += "\n    " + render_still(out, *args.resolution,
+            summary += "\n    " + render_still(render_out, *args.resolution,
                                                [o for o in objects if o.type == "MESH"])
         except Exception as e:
             failures.append(f"render failed: {e}")
@@ -493,11 +507,11 @@ def main():
     args = parse_args(script_args())
     log(f"Blender {bpy.app.version_string}, numpy {numpy.__version__}, "
         f"{len(args.files)} file(s)")
-    several = len(args.files) > 1
+    outs = render_paths(args.render, args.files) if args.render else [None] * len(args.files)
     bad = []
-    for path in args.files:
+    for path, render_out in zip(args.files, outs):
         t0 = time.monotonic()
-        summary, failures = check_file(path, args, several)
+        summary, failures = check_file(path, args, render_out)
         secs = time.monotonic() - t0
         status = "FAIL" if failures else "ok"
         log(f"{status} {path} ({secs:.1f} s): {summary or 'not imported'}")
