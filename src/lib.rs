@@ -8,8 +8,10 @@
 pub mod cloth;
 pub mod error;
 pub mod export;
+pub mod ik;
 pub mod io;
 pub mod mesh;
+pub mod path;
 pub mod spec;
 
 pub use error::{Error, Result};
