@@ -200,7 +200,7 @@ pub fn parse_path_data(d: &str) -> std::result::Result<Vec<Polyline>, String> {
         }
         let rel = cmd.is_ascii_lowercase();
         let base = if rel { p } else { DVec2::ZERO };
-        let mut pt = |lex: &mut Lexer<'_>| -> std::result::Result<DVec2, String> {
+        let pt = |lex: &mut Lexer<'_>| -> std::result::Result<DVec2, String> {
             let x = lex.number().ok_or_else(|| err(cmd))?;
             let y = lex.number().ok_or_else(|| err(cmd))?;
             Ok(base + DVec2::new(x, y))
