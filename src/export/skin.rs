@@ -291,8 +291,10 @@ pub fn write_chain_gltf(path: &Path, chain: &Chain, rest: &Pose, frames: &IkFram
 /// Writes `doc` back with one animation added: rotation channels for the chain joints `nodes`
 /// (all but the tip, whose rotation does not move the end effector). Chain nodes stored as a
 /// `matrix` are rewritten as the equivalent translation/rotation/scale, as glTF requires for
-/// animated nodes. Everything else (meshes, skins, materials, textures, existing animations) is
-/// kept; the new data is appended to the single binary buffer.
+/// animated nodes. Nodes holding a skinned mesh that are not scene roots are moved to the root of
+/// their scenes (glTF ignores parent transforms for skinned meshes, so nothing changes visually,
+/// and the validator warns otherwise). Everything else (meshes, skins, materials, textures,
+/// existing animations) is kept; the new data is appended to the single binary buffer.
 ///
 /// # Errors
 /// Write errors ([`crate::Error::Io`], [`crate::Error::Export`]).
@@ -308,8 +310,47 @@ pub fn write_rig_gltf(path: &Path, doc: RigDocument, chain: &Chain, nodes: &[usi
             nd.scale = Some(f32v(j.scale));
         }
     }
+    lift_skinned_meshes_to_root(&mut b.root);
     let animated: Vec<(usize, json::Index<json::Node>)> = nodes[..nodes.len() - 1].iter().enumerate().map(|(i, &nd)| (i, json::Index::new(nd as u32))).collect();
     let (channels, samplers) = rotation_channels(&mut b, frames, &animated);
     b.root.push(json::Animation { name: Some(frames.name.into()), channels, samplers, extensions: None, extras: Default::default() });
     b.write(path)
+}
+
+/// Moves nodes with a skinned mesh that have a parent to the root of the scenes holding that
+/// parent's hierarchy.
+fn lift_skinned_meshes_to_root(root: &mut json::Root) {
+    let mut parents = vec![None; root.nodes.len()];
+    for (i, n) in root.nodes.iter().enumerate() {
+        for c in n.children.iter().flatten() {
+            if let Some(p) = parents.get_mut(c.value()) {
+                *p = Some(i);
+            }
+        }
+    }
+    for i in 0..root.nodes.len() {
+        let (Some(parent), true) = (parents[i], root.nodes[i].skin.is_some() && root.nodes[i].mesh.is_some()) else { continue };
+        if let Some(children) = root.nodes[parent].children.as_mut() {
+            children.retain(|c| c.value() != i);
+            if children.is_empty() {
+                root.nodes[parent].children = None;
+            }
+        }
+        let mut top = parent;
+        let mut guard = 0;
+        while let Some(p) = parents[top] {
+            top = p;
+            guard += 1;
+            if guard > parents.len() {
+                break;
+            }
+        }
+        let node = json::Index::new(i as u32);
+        for scene in &mut root.scenes {
+            if scene.nodes.iter().any(|n| n.value() == top) && !scene.nodes.contains(&node) {
+                scene.nodes.push(node);
+            }
+        }
+        parents[i] = None;
+    }
 }

@@ -8,7 +8,7 @@
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
-use super::solver::{unfold_if_degenerate, check, finish, stretch_if_unreachable, IkSolver, SolveReport, SolverConfig};
+use super::solver::{too_close, unfold_if_degenerate, check, finish, stretch_if_unreachable, IkSolver, SolveReport, SolverConfig};
 use crate::error::Result;
 
 /// The CCD solver.
@@ -41,7 +41,8 @@ impl IkSolver for Ccd {
                 }
             }
         }
-        Ok(finish(chain, pose, start.as_ref(), target, iterations, cfg))
+        let inside = too_close(chain, pose, target, cfg);
+        Ok(SolveReport { unreachable: inside, ..finish(chain, pose, start.as_ref(), target, iterations, cfg) })
     }
 
     fn name(&self) -> &'static str {

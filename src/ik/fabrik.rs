@@ -11,7 +11,7 @@
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
-use super::solver::{unfold_if_degenerate, aim_at_positions, check, finish, stretch_if_unreachable, IkSolver, SolveReport, SolverConfig};
+use super::solver::{too_close, unfold_if_degenerate, aim_at_positions, check, finish, stretch_if_unreachable, IkSolver, SolveReport, SolverConfig};
 use crate::error::Result;
 
 /// The FABRIK solver.
@@ -61,7 +61,8 @@ impl IkSolver for Fabrik {
             fabrik_pass(&mut p, &d, target);
             aim_at_positions(chain, pose, &p);
         }
-        Ok(finish(chain, pose, start.as_ref(), target, iterations, cfg))
+        let inside = too_close(chain, pose, target, cfg);
+        Ok(SolveReport { unreachable: inside, ..finish(chain, pose, start.as_ref(), target, iterations, cfg) })
     }
 
     fn name(&self) -> &'static str {

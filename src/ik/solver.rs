@@ -70,18 +70,26 @@ pub(crate) fn check(chain: &Chain, pose: &Pose, target: DVec3) -> Result<()> {
     Ok(())
 }
 
-/// If `target` is beyond reach, stretches the chain straight from the root towards it (the same
-/// deterministic pose for every solver: each bone swings minimally from where it was) and
-/// returns the report; otherwise returns `None`.
+/// Handles targets the chain cannot reach. Beyond the reach (farther from the root than the sum
+/// of the bone lengths) the chain is stretched straight from the root towards the target (the
+/// same deterministic pose for every solver: each bone swings minimally from where it was) and
+/// the report is returned. Closer to the root than the chain can fold (the longest bone minus
+/// all the others) the frame is marked unreachable too; a two-joint chain then also points
+/// straight at the target (its best pose), longer chains let the solver do its best.
+/// Returns `None` to let the solver iterate, with `unreachable` set for a too-close target.
 pub(crate) fn stretch_if_unreachable(chain: &Chain, pose: &mut Pose, target: DVec3, config: &SolverConfig) -> Option<SolveReport> {
     let root = pose.position(0);
-    let reach = chain.reach(pose);
+    let lengths: Vec<f64> = (1..chain.len()).map(|i| pose.position(i).distance(pose.position(i - 1))).collect();
+    let reach: f64 = lengths.iter().sum();
+    let longest = lengths.iter().cloned().fold(0.0, f64::max);
+    let inner = (2.0 * longest - reach).max(0.0);
     let dist = root.distance(target);
-    if dist <= reach || dist < 1e-12 {
+    let too_far = dist > reach + config.tolerance;
+    let too_close = dist < inner - config.tolerance;
+    if !(too_far || (too_close && chain.len() == 2)) || dist < 1e-12 {
         return None;
     }
     let dir = (target - root) / dist;
-    let lengths: Vec<f64> = (1..chain.len()).map(|i| pose.position(i).distance(pose.position(i - 1))).collect();
     let mut desired = Vec::with_capacity(chain.len());
     let mut along = 0.0;
     desired.push(root);
@@ -92,6 +100,15 @@ pub(crate) fn stretch_if_unreachable(chain: &Chain, pose: &mut Pose, target: DVe
     aim_at_positions(chain, pose, &desired);
     let error = pose.tip().distance(target);
     Some(SolveReport { iterations: 1, error, reached: error <= config.tolerance, unreachable: true })
+}
+
+/// Whether `target` is closer to the root than the chain can fold (see
+/// [`stretch_if_unreachable`]).
+pub(crate) fn too_close(chain: &Chain, pose: &Pose, target: DVec3, config: &SolverConfig) -> bool {
+    let lengths: Vec<f64> = (1..chain.len()).map(|i| pose.position(i).distance(pose.position(i - 1))).collect();
+    let reach: f64 = lengths.iter().sum();
+    let longest = lengths.iter().cloned().fold(0.0, f64::max);
+    pose.position(0).distance(target) < (2.0 * longest - reach).max(0.0) - config.tolerance
 }
 
 /// Sets each joint's rotation so its child lies in the direction of `desired[i + 1]`, sweeping
