@@ -88,6 +88,24 @@ pub enum Error {
     /// An inverse-kinematics chain could not be built.
     #[error("{0}")]
     Chain(String),
+    /// A `--chain` end names no node of the rig.
+    #[error("{path}: --chain: no node named `{joint}` (use a node name or `#N` for node N)")]
+    UnknownJoint {
+        /// The rig file.
+        path: PathBuf,
+        /// The joint as given.
+        joint: String,
+    },
+    /// The `--chain` tip is not a descendant of the chain root.
+    #[error("{path}: --chain {root}..{tip}: `{tip}` is not below `{root}` in the node hierarchy")]
+    JointNotBelow {
+        /// The rig file.
+        path: PathBuf,
+        /// The chain root as given.
+        root: String,
+        /// The chain tip as given.
+        tip: String,
+    },
     /// An export could not be written because its data is inconsistent or too large.
     #[error("{path}: {message}")]
     Export {

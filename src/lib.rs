@@ -9,9 +9,11 @@ pub mod bake;
 pub mod cloth;
 pub mod error;
 pub mod export;
+pub mod ik;
 pub mod inspect;
 pub mod io;
 pub mod mesh;
+pub mod path;
 pub mod spec;
 
 pub use error::{Error, Result};

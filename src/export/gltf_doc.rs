@@ -45,6 +45,12 @@ impl GltfBuilder {
         }
     }
 
+    /// Continues an existing document whose single binary buffer (buffer 0) holds `bin`; new
+    /// views are appended after it and the document's asset and content are kept.
+    pub fn from_parts(root: json::Root, bin: Vec<u8>) -> Self {
+        GltfBuilder { root, bin }
+    }
+
     /// Bytes in the binary buffer so far.
     pub fn buffer_len(&self) -> usize {
         self.bin.len()

@@ -69,7 +69,6 @@ fn check_position_accessors(path: &Path, gltf: &gltf::Gltf) -> Result<()> {
 }
 
 fn check_external_files(path: &Path, gltf: &gltf::Gltf) -> Result<()> {
-    let dir = path.parent().unwrap_or(Path::new(""));
     let uris = gltf
         .buffers()
         .filter_map(|b| match b.source() {
@@ -81,12 +80,55 @@ fn check_external_files(path: &Path, gltf: &gltf::Gltf) -> Result<()> {
             gltf::image::Source::View { .. } => None,
         }));
     for (what, index, uri) in uris {
-        if !uri.starts_with("data:") && !dir.join(uri).exists() {
+        let file = uri_path(path, uri);
+        if !uri.starts_with("data:") && !file.exists() {
             return Err(Error::invalid(
                 path,
-                format!("{what} {index} refers to `{uri}`, which does not exist (expected beside the .gltf, at {})", dir.join(uri).display()),
+                format!("{what} {index} refers to `{uri}`, which does not exist (expected beside the .gltf, at {})", file.display()),
             ));
         }
     }
     Ok(())
+}
+
+/// The file a relative URI of the glTF at `gltf_path` points to (percent-escapes decoded).
+pub fn uri_path(gltf_path: &Path, uri: &str) -> std::path::PathBuf {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let escaped = (bytes[i] == b'%' && i + 2 < bytes.len())
+            .then(|| {
+                std::str::from_utf8(&bytes[i + 1..i + 3])
+                    .ok()
+                    .and_then(|h| u8::from_str_radix(h, 16).ok())
+            })
+            .flatten();
+        match escaped {
+            Some(v) => {
+                out.push(v);
+                i += 3;
+            }
+            None => {
+                out.push(bytes[i]);
+                i += 1;
+            }
+        }
+    }
+    gltf_path
+        .parent()
+        .unwrap_or(Path::new(""))
+        .join(String::from_utf8_lossy(&out).as_ref())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uris_are_decoded_without_panicking_on_odd_escapes() {
+        let p = Path::new("dir/scene.gltf");
+        assert_eq!(uri_path(p, "my%20mesh.bin"), Path::new("dir/my mesh.bin"));
+        assert_eq!(uri_path(p, "%é%zz%4"), Path::new("dir/%é%zz%4"));
+    }
 }

@@ -1,0 +1,107 @@
+//! IK benchmarks: one warm-started solve per target along the lab circle, for chains of 5, 10
+//! and 30 joints, with FABRIK and CCD; and a whole 40-character text bake (solve + glTF write).
+//!
+//! Run with `cargo bench --bench ik`. Before timing, the mean iterations per frame over the
+//! circle are printed for each solver and chain length.
+
+use std::f64::consts::TAU;
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use scenebake::glam::DVec3;
+use scenebake::ik::{bake_ik, Ccd, Chain, Fabrik, IkJob, IkSolver};
+
+fn circle() -> Vec<DVec3> {
+    (0..150)
+        .map(|k| {
+            let t = TAU * k as f64 / 150.0;
+            DVec3::new(0.6 * t.cos(), 0.0, 0.6 * t.sin())
+        })
+        .collect()
+}
+
+fn chain(n: usize) -> Chain {
+    if n == 5 {
+        Chain::lab_arm()
+    } else {
+        Chain::straight(n, 2.6).unwrap()
+    }
+}
+
+fn solvers() -> Vec<(&'static str, Box<dyn IkSolver>)> {
+    vec![
+        ("fabrik", Box::new(Fabrik::default())),
+        ("ccd", Box::new(Ccd::default())),
+    ]
+}
+
+fn solve(c: &mut Criterion) {
+    let targets = circle();
+    for (name, solver) in solvers() {
+        for n in [5, 10, 30] {
+            let ch = chain(n);
+            let mut pose = ch.rest_pose();
+            let (mut total, mut reached) = (0, 0);
+            for t in &targets {
+                let r = solver.solve(&ch, &mut pose, *t).unwrap();
+                total += r.iterations;
+                reached += usize::from(r.reached);
+            }
+            eprintln!(
+                "{name:>6} n={n:>2}: mean iterations {:.2}, reached {reached}/150",
+                total as f64 / 150.0
+            );
+        }
+    }
+    let mut group = c.benchmark_group("solve_per_target");
+    group
+        .sample_size(20)
+        .measurement_time(std::time::Duration::from_secs(2))
+        .warm_up_time(std::time::Duration::from_millis(500));
+    for (name, solver) in solvers() {
+        for n in [5, 10, 30] {
+            let ch = chain(n);
+            group.bench_with_input(BenchmarkId::new(name, n), &n, |b, _| {
+                let mut pose = ch.rest_pose();
+                let mut k = 0;
+                b.iter(|| {
+                    k = (k + 1) % targets.len();
+                    black_box(solver.solve(&ch, &mut pose, targets[k]).unwrap())
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+fn text_bake(c: &mut Criterion) {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "THE QUICK BROWN FOX JUMPS OVER 12 DOGS!?";
+    assert_eq!(text.len(), 40);
+    let job = IkJob {
+        preset: Some("lab-arm".into()),
+        text: Some(text.into()),
+        output: dir.path().join("text.glb"),
+        ..Default::default()
+    };
+    let r = bake_ik(&job, &mut |_, _| {}).unwrap();
+    eprintln!(
+        "text bake: {} frames, mean iterations {:.2}, reached {}/{}, {:.1} ms total",
+        r.frames,
+        r.mean_iterations,
+        r.reached,
+        r.frames,
+        r.seconds_total * 1e3
+    );
+    let mut group = c.benchmark_group("bake");
+    group
+        .sample_size(10)
+        .measurement_time(std::time::Duration::from_secs(3));
+    group.bench_function("text_40_chars_fabrik", |b| {
+        b.iter(|| black_box(bake_ik(&job, &mut |_, _| {}).unwrap().frames))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, solve, text_bake);
+criterion_main!(benches);

@@ -1,0 +1,600 @@
+//! IK export: joint rotations as LINEAR quaternion channels, one key per frame.
+//!
+//! For a generated chain the document is built from scratch: joint nodes `joint_0`… (parented in
+//! order, rest translation = offset), a skinned arm mesh (a tapered box per bone, each rigidly
+//! weighted to its bone's joint) at the scene root, a pen-tip marker under the end effector, the
+//! target path as a LINES mesh, and the drawn trail as LINE_STRIP pieces revealed one after
+//! another by STEP scale keys. For a rig the input document is written back with only one
+//! animation added.
+//!
+//! Quaternions are written (x, y, z, w), normalised in `f32` and sign-continuous (each key is
+//! negated if needed to lie in the same hemisphere as the previous one).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use glam::{DMat4, DQuat, DVec3, Vec3};
+use gltf_json as json;
+use json::validation::Checked::Valid;
+
+use super::gltf_doc::{GltfBuilder, Written};
+use crate::error::Result;
+use crate::ik::chain::{Chain, Pose};
+use crate::ik::rig::RigDocument;
+use crate::path::PenTarget;
+
+/// Scale of a trail piece before it is revealed (the validator dislikes exactly 0).
+pub const HIDDEN_SCALE: f32 = 1e-4;
+/// Frames per trail piece.
+const TRAIL_PIECE: usize = 12;
+
+/// Baked joint rotations.
+#[derive(Debug, Clone, Copy)]
+pub struct IkFrames<'a> {
+    /// Frames per second; frame k is keyed at k / fps seconds.
+    pub fps: f64,
+    /// Joints per frame.
+    pub joints: usize,
+    /// Local rotations, frame-major: `rotations[k * joints + i]` is joint i at frame k.
+    pub rotations: &'a [DQuat],
+    /// Animation name.
+    pub name: &'a str,
+}
+
+impl IkFrames<'_> {
+    fn frames(&self) -> usize {
+        self.rotations.len() / self.joints.max(1)
+    }
+
+    fn times(&self) -> Vec<f32> {
+        (0..self.frames())
+            .map(|k| (k as f64 / self.fps) as f32)
+            .collect()
+    }
+
+    /// Normalised, sign-continuous keys of joint i.
+    fn keys(&self, i: usize) -> Vec<[f32; 4]> {
+        let mut out: Vec<[f32; 4]> = Vec::with_capacity(self.frames());
+        for k in 0..self.frames() {
+            let q = self.rotations[k * self.joints + i].as_quat().normalize();
+            let mut a = q.to_array();
+            if let Some(prev) = out.last() {
+                let dot: f32 = prev.iter().zip(&a).map(|(x, y)| x * y).sum();
+                if dot < 0.0 {
+                    a = a.map(|x| -x);
+                }
+            }
+            out.push(a);
+        }
+        out
+    }
+}
+
+fn rotation_channels(
+    b: &mut GltfBuilder,
+    frames: &IkFrames<'_>,
+    joints: &[(usize, json::Index<json::Node>)],
+) -> (Vec<json::animation::Channel>, Vec<json::animation::Sampler>) {
+    let input = b.scalars(&frames.times(), true);
+    let mut channels = Vec::new();
+    let mut samplers = Vec::new();
+    for &(i, node) in joints {
+        let output = b.vec4(&frames.keys(i), None);
+        channels.push(channel(
+            samplers.len(),
+            node,
+            json::animation::Property::Rotation,
+        ));
+        samplers.push(sampler(
+            input,
+            output,
+            json::animation::Interpolation::Linear,
+        ));
+    }
+    (channels, samplers)
+}
+
+fn channel(
+    sampler: usize,
+    node: json::Index<json::Node>,
+    path: json::animation::Property,
+) -> json::animation::Channel {
+    json::animation::Channel {
+        sampler: json::Index::new(sampler as u32),
+        target: json::animation::Target {
+            node,
+            path: Valid(path),
+            extensions: None,
+            extras: Default::default(),
+        },
+        extensions: None,
+        extras: Default::default(),
+    }
+}
+
+fn sampler(
+    input: json::Index<json::Accessor>,
+    output: json::Index<json::Accessor>,
+    interpolation: json::animation::Interpolation,
+) -> json::animation::Sampler {
+    json::animation::Sampler {
+        input,
+        output,
+        interpolation: Valid(interpolation),
+        extensions: None,
+        extras: Default::default(),
+    }
+}
+
+fn material(
+    b: &mut GltfBuilder,
+    name: &str,
+    rgba: [f32; 4],
+    metallic: f32,
+) -> json::Index<json::Material> {
+    b.root.push(json::Material {
+        name: Some(name.into()),
+        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+            base_color_factor: json::material::PbrBaseColorFactor(rgba),
+            metallic_factor: json::material::StrengthFactor(metallic),
+            roughness_factor: json::material::StrengthFactor(0.6),
+            ..Default::default()
+        },
+        ..Default::default()
+    })
+}
+
+fn primitive(
+    attributes: BTreeMap<
+        json::validation::Checked<json::mesh::Semantic>,
+        json::Index<json::Accessor>,
+    >,
+    indices: Option<json::Index<json::Accessor>>,
+    material: json::Index<json::Material>,
+    mode: json::mesh::Mode,
+) -> json::mesh::Primitive {
+    json::mesh::Primitive {
+        attributes,
+        indices,
+        material: Some(material),
+        mode: Valid(mode),
+        targets: None,
+        extensions: None,
+        extras: Default::default(),
+    }
+}
+
+fn mesh(
+    b: &mut GltfBuilder,
+    name: &str,
+    primitives: Vec<json::mesh::Primitive>,
+) -> json::Index<json::Mesh> {
+    b.root.push(json::Mesh {
+        name: Some(name.into()),
+        primitives,
+        weights: None,
+        extensions: None,
+        extras: Default::default(),
+    })
+}
+
+fn f32v(v: DVec3) -> [f32; 3] {
+    v.as_vec3().to_array()
+}
+
+/// A tapered box from `a` to `b`: square sections of half-width `w0` at `a` and `w1` at `b`,
+/// 24 vertices (flat normals) and 12 triangles, appended to the buffers.
+fn tapered_box(
+    a: DVec3,
+    b: DVec3,
+    w0: f64,
+    w1: f64,
+    pos: &mut Vec<Vec3>,
+    nrm: &mut Vec<Vec3>,
+    idx: &mut Vec<u32>,
+) {
+    let axis = (b - a).normalize();
+    let side = axis.any_orthonormal_vector();
+    let other = axis.cross(side);
+    let corner = |base: DVec3, w: f64, k: usize| {
+        let (s, o) = [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)][k];
+        base + side * (s * w) + other * (o * w)
+    };
+    let lo: Vec<DVec3> = (0..4).map(|k| corner(a, w0, k)).collect();
+    let hi: Vec<DVec3> = (0..4).map(|k| corner(b, w1, k)).collect();
+    let mut quad = |q: [DVec3; 4]| {
+        let n = (q[1] - q[0])
+            .cross(q[2] - q[0])
+            .normalize_or_zero()
+            .as_vec3();
+        let start = pos.len() as u32;
+        for p in q {
+            pos.push(p.as_vec3());
+            nrm.push(n);
+        }
+        idx.extend_from_slice(&[start, start + 1, start + 2, start, start + 2, start + 3]);
+    };
+    for k in 0..4 {
+        let k1 = (k + 1) % 4;
+        quad([lo[k], lo[k1], hi[k1], hi[k]]);
+    }
+    quad([lo[3], lo[2], lo[1], lo[0]]);
+    quad([hi[0], hi[1], hi[2], hi[3]]);
+}
+
+/// Writes a generated chain's bake: armature, skinned arm, pen marker, target path, trail.
+/// `rest` is the chain's rest pose (bind pose), `targets` the pen path (one per frame) and
+/// `tips` the end-effector positions reached (one per frame).
+///
+/// # Errors
+/// Write errors ([`crate::Error::Io`], [`crate::Error::Export`]).
+pub fn write_chain_gltf(
+    path: &Path,
+    chain: &Chain,
+    rest: &Pose,
+    frames: &IkFrames<'_>,
+    targets: &[PenTarget],
+    tips: &[DVec3],
+) -> Result<Written> {
+    let mut b = GltfBuilder::new();
+    let n = chain.len();
+    let reach = chain.reach(rest).max(1e-9);
+    let array = Some(json::buffer::Target::ArrayBuffer);
+
+    // Joint nodes, parented in order (pushed first so joint i is node i).
+    let joint_nodes: Vec<json::Index<json::Node>> =
+        (0..n).map(|i| json::Index::new(i as u32)).collect();
+    for (i, j) in chain.joints().iter().enumerate() {
+        let mut children = Vec::new();
+        if i + 1 < n {
+            children.push(joint_nodes[i + 1]);
+        }
+        let r = j.rotation.as_quat().normalize();
+        b.root.push(json::Node {
+            name: Some(j.name.clone()),
+            translation: Some(f32v(j.translation)),
+            rotation: (r != glam::Quat::IDENTITY)
+                .then(|| json::scene::UnitQuaternion(r.to_array())),
+            scale: (j.scale != DVec3::ONE).then(|| f32v(j.scale)),
+            children: (!children.is_empty()).then_some(children),
+            ..Default::default()
+        });
+    }
+
+    // Skinned arm: a tapered box per bone, rigidly weighted to the bone's joint.
+    let (mut pos, mut nrm, mut idx, mut jnt) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for i in 0..n - 1 {
+        let (a, c) = (rest.position(i), rest.position(i + 1));
+        let before = pos.len();
+        let w = reach * 0.025;
+        tapered_box(a, c, w, w * 0.6, &mut pos, &mut nrm, &mut idx);
+        jnt.extend(std::iter::repeat(i).take(pos.len() - before));
+    }
+    let joints_acc = if n <= 256 {
+        let bytes: Vec<u8> = jnt.iter().flat_map(|&j| [j as u8, 0, 0, 0]).collect();
+        b.accessor(
+            &bytes,
+            jnt.len(),
+            json::accessor::Type::Vec4,
+            json::accessor::ComponentType::U8,
+            array,
+            None,
+            false,
+        )
+    } else {
+        let bytes: Vec<u8> = jnt
+            .iter()
+            .flat_map(|&j| [j as u16, 0, 0, 0])
+            .flat_map(u16::to_le_bytes)
+            .collect();
+        b.accessor(
+            &bytes,
+            jnt.len(),
+            json::accessor::Type::Vec4,
+            json::accessor::ComponentType::U16,
+            array,
+            None,
+            false,
+        )
+    };
+    let weights: Vec<[f32; 4]> = vec![[1.0, 0.0, 0.0, 0.0]; jnt.len()];
+    let mut attrs = BTreeMap::new();
+    attrs.insert(
+        Valid(json::mesh::Semantic::Positions),
+        b.vec3(&pos, array, true),
+    );
+    attrs.insert(
+        Valid(json::mesh::Semantic::Normals),
+        b.vec3(&nrm, array, false),
+    );
+    attrs.insert(Valid(json::mesh::Semantic::Joints(0)), joints_acc);
+    attrs.insert(
+        Valid(json::mesh::Semantic::Weights(0)),
+        b.vec4(&weights, array),
+    );
+    let indices = b.indices(&idx);
+    let arm_mat = material(&mut b, "arm", [0.75, 0.75, 0.78, 1.0], 0.3);
+    let arm_mesh = mesh(
+        &mut b,
+        "arm",
+        vec![primitive(
+            attrs,
+            Some(indices),
+            arm_mat,
+            json::mesh::Mode::Triangles,
+        )],
+    );
+    let ibm: Vec<[f32; 16]> = (0..n)
+        .map(|i| {
+            DMat4::from(rest.world[i])
+                .inverse()
+                .as_mat4()
+                .to_cols_array()
+        })
+        .collect();
+    let ibm = b.mat4(&ibm);
+    let skin = b.root.push(json::Skin {
+        name: Some("arm".into()),
+        inverse_bind_matrices: Some(ibm),
+        joints: joint_nodes.clone(),
+        skeleton: Some(joint_nodes[0]),
+        extensions: None,
+        extras: Default::default(),
+    });
+    let arm = b.root.push(json::Node {
+        name: Some("arm".into()),
+        mesh: Some(arm_mesh),
+        skin: Some(skin),
+        ..Default::default()
+    });
+
+    // Pen-tip marker: an octahedron under the end effector.
+    let s = (reach * 0.015) as f32;
+    let oct: Vec<Vec3> = vec![
+        Vec3::X * s,
+        -Vec3::X * s,
+        Vec3::Y * s,
+        -Vec3::Y * s,
+        Vec3::Z * s,
+        -Vec3::Z * s,
+    ];
+    let oct_idx: Vec<u32> = vec![
+        0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5,
+    ];
+    let mut attrs = BTreeMap::new();
+    attrs.insert(
+        Valid(json::mesh::Semantic::Positions),
+        b.vec3(&oct, array, true),
+    );
+    let oct_idx = b.indices(&oct_idx);
+    let pen_mat = material(&mut b, "pen", [0.9, 0.1, 0.1, 1.0], 0.0);
+    let pen_mesh = mesh(
+        &mut b,
+        "pen_tip",
+        vec![primitive(
+            attrs,
+            Some(oct_idx),
+            pen_mat,
+            json::mesh::Mode::Triangles,
+        )],
+    );
+    let pen = b.root.push(json::Node {
+        name: Some("pen_tip".into()),
+        mesh: Some(pen_mesh),
+        ..Default::default()
+    });
+    b.root.nodes[n - 1].children = Some(vec![pen]);
+
+    let mut scene_nodes = vec![joint_nodes[0], arm];
+
+    // Target path: the pen-down segments of the path, as LINES.
+    let mut line_pos = Vec::new();
+    for w in targets.windows(2) {
+        if w[0].stroke.is_some() && w[0].stroke == w[1].stroke {
+            line_pos.push(w[0].position.as_vec3());
+            line_pos.push(w[1].position.as_vec3());
+        }
+    }
+    let path_mat = material(&mut b, "target_path", [0.1, 0.35, 0.9, 1.0], 0.0);
+    if !line_pos.is_empty() {
+        let mut attrs = BTreeMap::new();
+        attrs.insert(
+            Valid(json::mesh::Semantic::Positions),
+            b.vec3(&line_pos, array, true),
+        );
+        let m = mesh(
+            &mut b,
+            "target_path",
+            vec![primitive(attrs, None, path_mat, json::mesh::Mode::Lines)],
+        );
+        scene_nodes.push(b.root.push(json::Node {
+            name: Some("target_path".into()),
+            mesh: Some(m),
+            ..Default::default()
+        }));
+    }
+
+    // The drawn trail: pieces of the reached tip positions along each stroke, revealed (scale
+    // from HIDDEN_SCALE to 1, STEP) at the frame their last point is drawn.
+    let (mut channels, mut samplers) = rotation_channels(
+        &mut b,
+        frames,
+        &(0..n - 1).map(|i| (i, joint_nodes[i])).collect::<Vec<_>>(),
+    );
+    let trail_mat = material(&mut b, "trail", [0.05, 0.05, 0.05, 1.0], 0.0);
+    let mut pieces = Vec::new();
+    let mut k = 0;
+    while k < targets.len() {
+        let Some(stroke) = targets[k].stroke else {
+            k += 1;
+            continue;
+        };
+        let mut end = k;
+        while end + 1 < targets.len()
+            && targets[end + 1].stroke == Some(stroke)
+            && end + 1 - k < TRAIL_PIECE
+        {
+            end += 1;
+        }
+        let first = if k > 0 && targets[k - 1].stroke == Some(stroke) {
+            k - 1
+        } else {
+            k
+        };
+        if end > first {
+            let origin = tips[first];
+            let pts: Vec<Vec3> = (first..=end)
+                .map(|f| (tips[f] - origin).as_vec3())
+                .collect();
+            let mut attrs = BTreeMap::new();
+            attrs.insert(
+                Valid(json::mesh::Semantic::Positions),
+                b.vec3(&pts, array, true),
+            );
+            let m = mesh(
+                &mut b,
+                &format!("trail_{:03}", pieces.len()),
+                vec![primitive(
+                    attrs,
+                    None,
+                    trail_mat,
+                    json::mesh::Mode::LineStrip,
+                )],
+            );
+            let reveal = (end as f64 / frames.fps) as f32;
+            let hidden = end > 0;
+            let node = b.root.push(json::Node {
+                name: Some(format!("trail_{:03}", pieces.len())),
+                mesh: Some(m),
+                translation: Some(f32v(origin)),
+                scale: hidden.then_some([HIDDEN_SCALE; 3]),
+                ..Default::default()
+            });
+            if hidden {
+                let input = b.scalars(&[0.0, reveal], true);
+                let output = b.vec3(&[Vec3::splat(HIDDEN_SCALE), Vec3::ONE], None, false);
+                channels.push(channel(
+                    samplers.len(),
+                    node,
+                    json::animation::Property::Scale,
+                ));
+                samplers.push(sampler(input, output, json::animation::Interpolation::Step));
+            }
+            pieces.push(node);
+        }
+        k = end + 1;
+    }
+    if !pieces.is_empty() {
+        scene_nodes.push(b.root.push(json::Node {
+            name: Some("trail".into()),
+            children: Some(pieces),
+            ..Default::default()
+        }));
+    }
+
+    b.root.push(json::Animation {
+        name: Some(frames.name.into()),
+        channels,
+        samplers,
+        extensions: None,
+        extras: Default::default(),
+    });
+    let scene = b.root.push(json::Scene {
+        name: Some("scenebake ik".into()),
+        nodes: scene_nodes,
+        extensions: None,
+        extras: Default::default(),
+    });
+    b.root.scene = Some(scene);
+    b.write(path)
+}
+
+/// Writes `doc` back with one animation added: rotation channels for the chain joints `nodes`
+/// (all but the tip, whose rotation does not move the end effector). Chain nodes stored as a
+/// `matrix` are rewritten as the equivalent translation/rotation/scale, as glTF requires for
+/// animated nodes. Nodes holding a skinned mesh that are not scene roots are moved to the root of
+/// their scenes (glTF ignores parent transforms for skinned meshes, so nothing changes visually,
+/// and the validator warns otherwise). Everything else (meshes, skins, materials, textures,
+/// existing animations) is kept; the new data is appended to the single binary buffer.
+///
+/// # Errors
+/// Write errors ([`crate::Error::Io`], [`crate::Error::Export`]).
+pub fn write_rig_gltf(
+    path: &Path,
+    doc: RigDocument,
+    chain: &Chain,
+    nodes: &[usize],
+    frames: &IkFrames<'_>,
+) -> Result<Written> {
+    let mut b = GltfBuilder::from_parts(doc.root, doc.bin);
+    for (i, &node) in nodes.iter().enumerate() {
+        let nd = &mut b.root.nodes[node];
+        if nd.matrix.is_some() {
+            let j = &chain.joints()[i];
+            nd.matrix = None;
+            nd.translation = Some(f32v(j.translation));
+            nd.rotation = Some(json::scene::UnitQuaternion(
+                j.rotation.as_quat().normalize().to_array(),
+            ));
+            nd.scale = Some(f32v(j.scale));
+        }
+    }
+    lift_skinned_meshes_to_root(&mut b.root);
+    let animated: Vec<(usize, json::Index<json::Node>)> = nodes[..nodes.len() - 1]
+        .iter()
+        .enumerate()
+        .map(|(i, &nd)| (i, json::Index::new(nd as u32)))
+        .collect();
+    let (channels, samplers) = rotation_channels(&mut b, frames, &animated);
+    b.root.push(json::Animation {
+        name: Some(frames.name.into()),
+        channels,
+        samplers,
+        extensions: None,
+        extras: Default::default(),
+    });
+    b.write(path)
+}
+
+/// Moves nodes with a skinned mesh that have a parent to the root of the scenes holding that
+/// parent's hierarchy.
+fn lift_skinned_meshes_to_root(root: &mut json::Root) {
+    let mut parents = vec![None; root.nodes.len()];
+    for (i, n) in root.nodes.iter().enumerate() {
+        for c in n.children.iter().flatten() {
+            if let Some(p) = parents.get_mut(c.value()) {
+                *p = Some(i);
+            }
+        }
+    }
+    for i in 0..root.nodes.len() {
+        let (Some(parent), true) = (
+            parents[i],
+            root.nodes[i].skin.is_some() && root.nodes[i].mesh.is_some(),
+        ) else {
+            continue;
+        };
+        if let Some(children) = root.nodes[parent].children.as_mut() {
+            children.retain(|c| c.value() != i);
+            if children.is_empty() {
+                root.nodes[parent].children = None;
+            }
+        }
+        let mut top = parent;
+        let mut guard = 0;
+        while let Some(p) = parents[top] {
+            top = p;
+            guard += 1;
+            if guard > parents.len() {
+                break;
+            }
+        }
+        let node = json::Index::new(i as u32);
+        for scene in &mut root.scenes {
+            if scene.nodes.iter().any(|n| n.value() == top) && !scene.nodes.contains(&node) {
+                scene.nodes.push(node);
+            }
+        }
+        parents[i] = None;
+    }
+}

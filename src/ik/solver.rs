@@ -1,0 +1,210 @@
+//! The IK solver trait, its configuration and per-solve report, and the behaviour shared by all
+//! solvers (unreachable targets, the per-frame rotation limit).
+
+use glam::DVec3;
+
+use super::chain::{Chain, Pose};
+use crate::error::{Error, Result};
+
+/// Settings shared by the solvers.
+///
+/// ```
+/// use scenebake::ik::SolverConfig;
+/// let c = SolverConfig::default();
+/// assert_eq!(c.max_iterations, 100);
+/// assert_eq!(c.tolerance, 1e-4);
+/// assert_eq!(c.max_angle, None);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverConfig {
+    /// Iteration cap per solve (CCD: sweeps over the joints; FABRIK: backward + forward passes).
+    pub max_iterations: usize,
+    /// Distance between end effector and target (scene units) under which a solve stops and
+    /// counts as reached.
+    pub tolerance: f64,
+    /// Largest rotation of any joint per solve, in radians, measured from the pose the solve
+    /// started from (the previous frame when warm-starting); `None` = unlimited.
+    pub max_angle: Option<f64>,
+}
+
+impl Default for SolverConfig {
+    fn default() -> Self {
+        SolverConfig {
+            max_iterations: 100,
+            tolerance: 1e-4,
+            max_angle: None,
+        }
+    }
+}
+
+/// What one solve did. Non-convergence is reported here, never as an error.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SolveReport {
+    /// Iterations performed (0 when the start pose already reached the target).
+    pub iterations: usize,
+    /// Final distance from end effector to target (scene units).
+    pub error: f64,
+    /// `error <= tolerance`.
+    pub reached: bool,
+    /// The target lies beyond the chain's reach: the chain was stretched straight towards it.
+    pub unreachable: bool,
+}
+
+/// An inverse-kinematics solver: moves `pose` (warm start: whatever it holds) so the chain's end
+/// effector reaches `target` (world coordinates).
+pub trait IkSolver {
+    /// Solves in place and reports.
+    ///
+    /// # Errors
+    /// [`Error::Chain`] when the pose does not belong to the chain or the target is not finite.
+    fn solve(&self, chain: &Chain, pose: &mut Pose, target: DVec3) -> Result<SolveReport>;
+
+    /// Short name (`"ccd"`, `"fabrik"`).
+    fn name(&self) -> &'static str;
+}
+
+/// Checks a solve's preconditions.
+pub(crate) fn check(chain: &Chain, pose: &Pose, target: DVec3) -> Result<()> {
+    if pose.rotations.len() != chain.len() || pose.world.len() != chain.len() {
+        return Err(Error::Chain(format!(
+            "pose has {} joints, chain has {}",
+            pose.rotations.len(),
+            chain.len()
+        )));
+    }
+    if !target.is_finite() {
+        return Err(Error::Chain(format!("target {target} is not finite")));
+    }
+    Ok(())
+}
+
+/// Handles targets the chain cannot reach. Beyond the reach (farther from the root than the sum
+/// of the bone lengths) the chain is stretched straight from the root towards the target (the
+/// same deterministic pose for every solver: each bone swings minimally from where it was) and
+/// the report is returned. Closer to the root than the chain can fold (the longest bone minus
+/// all the others) the frame is marked unreachable too; a two-joint chain then also points
+/// straight at the target (its best pose), longer chains let the solver do its best.
+/// Returns `None` to let the solver iterate, with `unreachable` set for a too-close target.
+pub(crate) fn stretch_if_unreachable(
+    chain: &Chain,
+    pose: &mut Pose,
+    target: DVec3,
+    config: &SolverConfig,
+) -> Option<SolveReport> {
+    let root = pose.position(0);
+    let lengths: Vec<f64> = (1..chain.len())
+        .map(|i| pose.position(i).distance(pose.position(i - 1)))
+        .collect();
+    let reach: f64 = lengths.iter().sum();
+    let longest = lengths.iter().cloned().fold(0.0, f64::max);
+    let inner = (2.0 * longest - reach).max(0.0);
+    let dist = root.distance(target);
+    let too_far = dist > reach + config.tolerance;
+    let too_close = dist < inner - config.tolerance;
+    if !(too_far || (too_close && chain.len() == 2)) || dist < 1e-12 {
+        return None;
+    }
+    let dir = (target - root) / dist;
+    let mut desired = Vec::with_capacity(chain.len());
+    let mut along = 0.0;
+    desired.push(root);
+    for d in &lengths {
+        along += d;
+        desired.push(root + dir * along);
+    }
+    aim_at_positions(chain, pose, &desired);
+    let error = pose.tip().distance(target);
+    Some(SolveReport {
+        iterations: 1,
+        error,
+        reached: error <= config.tolerance,
+        unreachable: true,
+    })
+}
+
+/// Whether `target` is closer to the root than the chain can fold (see
+/// [`stretch_if_unreachable`]).
+pub(crate) fn too_close(chain: &Chain, pose: &Pose, target: DVec3, config: &SolverConfig) -> bool {
+    let lengths: Vec<f64> = (1..chain.len())
+        .map(|i| pose.position(i).distance(pose.position(i - 1)))
+        .collect();
+    let reach: f64 = lengths.iter().sum();
+    let longest = lengths.iter().cloned().fold(0.0, f64::max);
+    pose.position(0).distance(target) < (2.0 * longest - reach).max(0.0) - config.tolerance
+}
+
+/// Sets each joint's rotation so its child lies in the direction of `desired[i + 1]`, sweeping
+/// from the root (each rotation is the smallest swing from the current one, so twist is kept),
+/// and leaves `pose.world` consistent. O(n).
+pub(crate) fn aim_at_positions(chain: &Chain, pose: &mut Pose, desired: &[DVec3]) {
+    let n = chain.len();
+    for i in 0..n - 1 {
+        let parent = if i == 0 {
+            chain.base()
+        } else {
+            pose.world[i - 1]
+        };
+        let inv = parent.matrix3.inverse();
+        let p_i = parent.transform_point3(chain.joints()[i].translation);
+        let j1 = &chain.joints()[i + 1];
+        // The child's offset expressed in the parent's frame, with the current rotation.
+        let current = pose.rotations[i] * (chain.joints()[i].scale * j1.translation);
+        let wanted = inv * (desired[i + 1] - p_i);
+        super::chain::rotate_local(&mut pose.rotations[i], current, wanted);
+        pose.world[i] = parent * chain.local(i, pose.rotations[i]);
+    }
+    pose.world[n - 1] = pose.world[n - 2] * chain.local(n - 1, pose.rotations[n - 1]);
+}
+
+/// Applies the optional rotation limit relative to `start` and computes the final report.
+pub(crate) fn finish(
+    chain: &Chain,
+    pose: &mut Pose,
+    start: Option<&Pose>,
+    target: DVec3,
+    iterations: usize,
+    config: &SolverConfig,
+) -> SolveReport {
+    if let (Some(max), Some(start)) = (config.max_angle, start) {
+        chain.clamp_to(pose, start, max);
+    }
+    let error = pose.tip().distance(target);
+    SolveReport {
+        iterations,
+        error,
+        reached: error <= config.tolerance,
+        unreachable: false,
+    }
+}
+
+/// Both CCD and FABRIK stall when the chain is straight and the target lies on its line inside
+/// the reach (every rotation they compute is the identity). Detects that case and bends the
+/// inner joints slightly (0.05 rad each, about a fixed axis perpendicular to the line) so the
+/// solvers can fold the chain. Returns true if it bent the chain.
+pub(crate) fn unfold_if_degenerate(chain: &Chain, pose: &mut Pose, target: DVec3) -> bool {
+    let n = chain.len();
+    if n < 3 {
+        return false;
+    }
+    let root = pose.position(0);
+    let line = pose.tip() - root;
+    let len = line.length();
+    if len < 1e-12 {
+        return false;
+    }
+    let dir = line / len;
+    let eps = 1e-9 * chain.reach(pose).max(1e-12);
+    let off_line = |p: DVec3| (p - root).reject_from_normalized(dir).length();
+    if off_line(target) > eps || (1..n - 1).any(|i| off_line(pose.position(i)) > eps) {
+        return false;
+    }
+    let axis = dir.any_orthonormal_vector();
+    for i in 1..n - 1 {
+        let inv = chain.parent_linear(pose, i).inverse();
+        let local_axis = (inv * axis).normalize();
+        pose.rotations[i] =
+            (glam::DQuat::from_axis_angle(local_axis, 0.05) * pose.rotations[i]).normalize();
+        chain.fk(pose, i);
+    }
+    true
+}

@@ -1,0 +1,265 @@
+//! IK on chains inside real rigged glTF files: the document survives, the tip follows the path.
+
+mod common;
+
+use common::load;
+use glam::DVec3;
+use scenebake::ik::{bake_ik, IkJob, SolverKind};
+use scenebake::path::CurveKind;
+use scenebake::Error;
+
+fn mesh(name: &str) -> std::path::PathBuf {
+    common::crate_dir().join("meshes").join(name)
+}
+
+#[test]
+fn fox_spine_draws_a_heart_and_keeps_the_document() {
+    let dir = tempfile::tempdir().unwrap();
+    for solver in [SolverKind::Fabrik, SolverKind::Ccd] {
+        let job = IkJob {
+            rig: Some(mesh("Fox.glb")),
+            chain: Some("b_Spine01_02..b_Head_05".into()),
+            curve: Some(CurveKind::Heart),
+            solver,
+            output: dir.path().join(format!("fox_{}.glb", solver.as_str())),
+            ..Default::default()
+        };
+        let r = bake_ik(&job, &mut |_, _| {}).unwrap();
+        assert_eq!(r.joints, 4);
+        assert_eq!(
+            r.joint_names,
+            ["b_Spine01_02", "b_Spine02_03", "b_Neck_04", "b_Head_05"]
+        );
+        assert_eq!(
+            r.unreachable, 0,
+            "{solver:?}: the default heart should be inside the reach"
+        );
+
+        let before = load(&mesh("Fox.glb"));
+        let after = load(&job.output);
+        assert_eq!(after.doc.meshes().count(), before.doc.meshes().count());
+        assert_eq!(after.doc.skins().count(), before.doc.skins().count());
+        assert_eq!(after.doc.nodes().count(), before.doc.nodes().count());
+        assert_eq!(
+            after.doc.materials().count(),
+            before.doc.materials().count()
+        );
+        assert_eq!(after.doc.textures().count(), before.doc.textures().count());
+        assert_eq!(after.doc.images().count(), before.doc.images().count());
+        assert_eq!(
+            after.doc.animations().count(),
+            before.doc.animations().count() + 1
+        );
+        assert_eq!(
+            after.doc.buffers().count(),
+            1,
+            "GLB keeps a single BIN buffer"
+        );
+        // The original buffer's bytes are a prefix of the new one (data appended).
+        assert!(after.buffers[0].len() > before.buffers[0].len());
+        assert_eq!(
+            &after.buffers[0][..before.doc.buffers().next().unwrap().length()],
+            &before.buffers[0][..before.doc.buffers().next().unwrap().length()]
+        );
+        // Original animations unchanged.
+        for (a, b) in before.doc.animations().zip(after.doc.animations()) {
+            assert_eq!(a.name(), b.name());
+            assert_eq!(a.channels().count(), b.channels().count());
+        }
+
+        // Independent FK through the whole hierarchy (parents above the chain root included).
+        let tracks = after.animation("ik");
+        let head = after.node_by_name("b_Head_05");
+        let spine = after.node_by_name("b_Spine01_02");
+        let (times, _) = tracks.rotation.values().next().unwrap();
+        assert_eq!(times.len(), r.frames);
+        let rest = before.animation("Walk"); // any other animation: only used for its absence of our nodes
+        let _ = rest;
+        let empty = common::Tracks::default();
+        let root_rest = after.world_pos(&empty, spine, 0.0);
+        let bones: Vec<f64> = {
+            let names = ["b_Spine01_02", "b_Spine02_03", "b_Neck_04", "b_Head_05"];
+            let p: Vec<DVec3> = names
+                .iter()
+                .map(|n| after.world_pos(&empty, after.node_by_name(n), 0.0))
+                .collect();
+            p.windows(2).map(|w| w[0].distance(w[1])).collect()
+        };
+        let mut within = 0;
+        for (k, &t) in times.iter().enumerate() {
+            let tip = after.world_pos(&tracks, head, t);
+            let target = DVec3::from_array(r.targets[k]);
+            // f32 keys on a ~60-unit chain: allow for rounding on top of the solver tolerance.
+            if tip.distance(target) <= 1e-4 + 2e-4 {
+                within += 1;
+            }
+            if r.error[k] <= 1e-4 {
+                assert!(
+                    tip.distance(target) <= 1e-4 + 2e-4,
+                    "{solver:?} frame {k}: reported reached but file tip is {} away",
+                    tip.distance(target)
+                );
+            }
+            assert!(
+                after.world_pos(&tracks, spine, t).distance(root_rest) < 1e-3,
+                "chain root moved"
+            );
+            let names = ["b_Spine01_02", "b_Spine02_03", "b_Neck_04", "b_Head_05"];
+            let p: Vec<DVec3> = names
+                .iter()
+                .map(|n| after.world_pos(&tracks, after.node_by_name(n), t))
+                .collect();
+            for (i, w) in p.windows(2).enumerate() {
+                assert!(
+                    (w[0].distance(w[1]) - bones[i]).abs() < 1e-3,
+                    "bone {i} length changed"
+                );
+            }
+        }
+        assert_eq!(within, r.reached, "{solver:?}");
+        assert!(
+            r.reached as f64 >= 0.95 * r.frames as f64,
+            "{solver:?}: only {} of {} frames reached",
+            r.reached,
+            r.frames
+        );
+    }
+}
+
+#[test]
+fn matrix_nodes_and_negative_w_rig_is_animated_in_its_real_frames() {
+    // RiggedSimple: parents stored as matrices (a Z-up flip and a 90° turn), Bone as a matrix,
+    // Bone.001 with w ≈ -1. A two-joint chain: only Bone rotates, so the tip can only reach the
+    // sphere around Bone through its rest position; put a circle on that sphere.
+    let dir = tempfile::tempdir().unwrap();
+    let src = load(&mesh("RiggedSimple.gltf"));
+    let empty = common::Tracks::default();
+    let root = src.world_pos(&empty, src.node_by_name("Bone"), 0.0);
+    let rest_tip = src.world_pos(&empty, src.node_by_name("Bone.001"), 0.0);
+    let (axis, len) = ((rest_tip - root).normalize(), rest_tip.distance(root));
+    let alpha: f64 = 0.3;
+    let job = IkJob {
+        rig: Some(mesh("RiggedSimple.gltf")),
+        chain: Some("Bone..Bone.001".into()),
+        curve: Some(CurveKind::Circle),
+        center: Some(root + axis * len * alpha.cos()),
+        radius: Some(len * alpha.sin()),
+        output: dir.path().join("rs.gltf"),
+        ..Default::default()
+    };
+    let r = bake_ik(&job, &mut |_, _| {}).unwrap();
+    assert_eq!(r.reached, r.frames, "max error {}", r.max_error);
+    let l = load(&job.output);
+    let bone = l.node_by_name("Bone");
+    assert!(
+        matches!(
+            l.doc.nodes().nth(bone).unwrap().transform(),
+            gltf::scene::Transform::Decomposed { .. }
+        ),
+        "animated node must be TRS"
+    );
+    assert_eq!(l.doc.animations().count(), 2);
+    assert_eq!(l.doc.meshes().count(), src.doc.meshes().count());
+    let tracks = l.animation("ik");
+    let tip = l.node_by_name("Bone.001");
+    let (times, keys) = tracks.rotation.get(&bone).unwrap();
+    for (k, &t) in times.iter().enumerate() {
+        let p = l.world_pos(&tracks, tip, t);
+        assert!(
+            p.distance(DVec3::from_array(r.targets[k])) < 1e-4 + 1e-5,
+            "frame {k}: {}",
+            p.distance(DVec3::from_array(r.targets[k]))
+        );
+        // The circle really is on the sphere the tip can reach, i.e. the frames are right.
+        assert!((p.distance(root) - len).abs() < 1e-4);
+    }
+    for q in keys {
+        let n: f32 = q.iter().map(|x| x * x).sum::<f32>().sqrt();
+        assert!((n - 1.0).abs() < 1e-6);
+    }
+    for w in keys.windows(2) {
+        assert!(
+            w[0].iter().zip(&w[1]).map(|(a, b)| a * b).sum::<f32>() > 0.0,
+            "sign flip between keys"
+        );
+    }
+}
+
+#[test]
+fn simple_skin_loads_base64_buffers_but_its_zero_length_bone_is_refused() {
+    // SimpleSkin's second joint sits exactly on the first: no bone to turn.
+    let dir = tempfile::tempdir().unwrap();
+    let job = IkJob {
+        rig: Some(mesh("SimpleSkin.gltf")),
+        chain: Some("#1..#2".into()),
+        curve: Some(CurveKind::Square),
+        output: dir.path().join("ss.glb"),
+        ..Default::default()
+    };
+    let e = bake_ik(&job, &mut |_, _| {}).unwrap_err().to_string();
+    assert!(
+        e.contains("SimpleSkin.gltf") && e.contains("#2") && e.contains("length 0"),
+        "{e}"
+    );
+}
+
+#[test]
+fn bad_chains_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = IkJob {
+        rig: Some(mesh("Fox.glb")),
+        curve: Some(CurveKind::Circle),
+        output: dir.path().join("x.glb"),
+        ..Default::default()
+    };
+    let e = bake_ik(
+        &IkJob {
+            chain: Some("b_Spine01_02..b_Nose".into()),
+            ..base.clone()
+        },
+        &mut |_, _| {},
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, Error::UnknownJoint { joint, .. } if joint == "b_Nose"),
+        "{e}"
+    );
+    assert!(e.to_string().contains("Fox.glb") && e.to_string().contains("b_Nose"));
+    let e = bake_ik(
+        &IkJob {
+            chain: Some("b_Head_05..b_Spine01_02".into()),
+            ..base.clone()
+        },
+        &mut |_, _| {},
+    )
+    .unwrap_err();
+    assert!(matches!(e, Error::JointNotBelow { .. }), "{e}");
+    let e = bake_ik(
+        &IkJob {
+            chain: Some("b_Spine01_02..b_Tail03_014".into()),
+            ..base.clone()
+        },
+        &mut |_, _| {},
+    )
+    .unwrap_err();
+    assert!(matches!(e, Error::JointNotBelow { .. }), "{e}");
+    let e = bake_ik(
+        &IkJob {
+            chain: Some("#999..#3".into()),
+            ..base.clone()
+        },
+        &mut |_, _| {},
+    )
+    .unwrap_err();
+    assert!(matches!(e, Error::UnknownJoint { .. }), "{e}");
+    let e = bake_ik(
+        &IkJob {
+            chain: Some("b_Spine01_02".into()),
+            ..base.clone()
+        },
+        &mut |_, _| {},
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("--chain"), "{e}");
+    assert!(!dir.path().join("x.glb").exists());
+}

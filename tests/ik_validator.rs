@@ -1,0 +1,77 @@
+//! Runs the Khronos glTF-Validator on IK bakes when it is available.
+//!
+//! Set `SCENEBAKE_GLTF_VALIDATOR` to the path of `validate_gltf.mjs` (the tooling script, with its
+//! `npm ci` done); the test then requires zero errors and zero warnings. Without it the test only
+//! bakes the files and says it skipped validation.
+
+use std::process::Command;
+
+use scenebake::ik::{bake_ik, IkJob, SolverKind};
+use scenebake::path::CurveKind;
+
+#[test]
+fn ik_bakes_are_validator_clean() {
+    let dir = tempfile::tempdir().unwrap();
+    let lab = IkJob {
+        preset: Some("lab-arm".into()),
+        ..Default::default()
+    };
+    let meshes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes");
+    let jobs = [
+        IkJob {
+            curve: Some(CurveKind::Circle),
+            solver: SolverKind::Ccd,
+            output: dir.path().join("circle.glb"),
+            ..lab.clone()
+        },
+        IkJob {
+            text: Some("HELLO".into()),
+            output: dir.path().join("hello.gltf"),
+            ..lab.clone()
+        },
+        IkJob {
+            preset: None,
+            joints: Some(300),
+            length: Some(3.0),
+            curve: Some(CurveKind::Triangle),
+            spacing: Some(0.2),
+            max_iterations: 5,
+            output: dir.path().join("u16.glb"),
+            ..lab.clone()
+        },
+        IkJob {
+            preset: None,
+            rig: Some(meshes.join("Fox.glb")),
+            chain: Some("b_Spine01_02..b_Head_05".into()),
+            curve: Some(CurveKind::Heart),
+            output: dir.path().join("fox.glb"),
+            ..lab.clone()
+        },
+        IkJob {
+            preset: None,
+            rig: Some(meshes.join("RiggedSimple.gltf")),
+            chain: Some("Bone..Bone.001".into()),
+            curve: Some(CurveKind::Circle),
+            output: dir.path().join("rs.gltf"),
+            ..lab.clone()
+        },
+    ];
+    for job in &jobs {
+        bake_ik(job, &mut |_, _| {}).unwrap();
+    }
+    let Ok(script) = std::env::var("SCENEBAKE_GLTF_VALIDATOR") else {
+        eprintln!("SCENEBAKE_GLTF_VALIDATOR not set: validation skipped");
+        return;
+    };
+    let out = Command::new("node")
+        .arg(&script)
+        .args(jobs.iter().map(|j| &j.output))
+        .output()
+        .expect("run node");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "validator reported problems:\n{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
