@@ -392,11 +392,24 @@ def add_framing_camera(scene, mesh_objs, width, height):
     return Vector(target), Vector(hi - lo), dist
 
 
+def thicken_lines(mesh_objs, radius):
+    """Give edge-only meshes (glTF LINES: IK target paths and trails) a round bevel, since
+    renderers draw no loose edges. Object transforms and their animation are kept."""
+    for obj in mesh_objs:
+        if len(obj.data.polygons) == 0 and len(obj.data.edges) > 0:
+            bpy.ops.object.select_all(action="DESELECT")
+            obj.select_set(True)
+            bpy.context.view_layer.objects.active = obj
+            bpy.ops.object.convert(target="CURVE")
+            obj.data.bevel_depth = radius
+
+
 def render_still(path, width, height, mesh_objs):
     scene = bpy.context.scene
     if not mesh_objs:
         raise CheckFailed("--render: no mesh object to frame")
     centre, extent, dist = add_framing_camera(scene, mesh_objs, width, height)
+    thicken_lines(mesh_objs, 0.004 * extent.length)
 
     scene.render.engine = "BLENDER_WORKBENCH"
     scene.render.resolution_x = width

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{anyhow, bail, Context};
 use clap::{Args, CommandFactory, Parser};
 
-use super::{progress, run_cloth, summary_line, write_report, Cli, Command, Outcome};
+use super::{progress, run_cloth, run_ik, summary_line, write_report, Cli, Command, Outcome};
 
 /// Run the jobs of a scene file.
 #[derive(Debug, Args)]
@@ -30,7 +30,7 @@ pub struct RunArgs {
 /// Keys whose values are file paths, resolved against the scene file's folder.
 const PATH_KEYS: &[&str] = &["input", "output", "report", "rig", "svg", "points", "vat"];
 /// Job kinds a scene file may hold.
-const KINDS: &[&str] = &["cloth"];
+const KINDS: &[&str] = &["cloth", "ik"];
 
 /// A job read from a scene file, parsed by the command-line parser.
 struct SceneJob {
@@ -63,6 +63,7 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
         let label = format!("[{}/{}] {} {}", i + 1, selected.len(), job.kind, job.name);
         let outcome = match &job.command {
             Command::Cloth(a) => run_cloth(a, &label, quiet),
+            Command::Ik(a) => run_ik(a, &label, quiet),
             Command::Run(_) | Command::Inspect(_) => unreachable!("scene jobs are cloth or ik"),
         }
         .with_context(|| {
