@@ -8,6 +8,7 @@ use clap::Parser;
 
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
+    cli::interrupt::install();
     match cli::execute(&cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

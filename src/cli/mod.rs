@@ -4,6 +4,7 @@
 pub mod cloth;
 pub mod ik;
 pub mod inspect;
+pub mod interrupt;
 pub mod progress;
 pub mod scene;
 
@@ -110,6 +111,7 @@ pub fn run_cloth(args: &cloth::ClothArgs, label: &str, quiet: bool) -> anyhow::R
 /// Bakes one IK job with a progress bar (the library writes its report when asked).
 pub fn run_ik(args: &ik::IkArgs, label: &str, quiet: bool) -> anyhow::Result<Outcome> {
     let job = args.job()?;
+    interrupt::register_outputs(&[&job.output, job.report.as_deref().unwrap_or(&job.output)]);
     let bar = progress::bar(label, 1, quiet);
     let start = std::time::Instant::now();
     let report = scenebake::ik::bake::bake_ik(&job, &mut |done, total| {
