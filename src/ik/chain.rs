@@ -257,7 +257,7 @@ mod tests {
         let mut pos = DVec3::ZERO;
         for i in 0..c.len() {
             pos = if i == 0 { c.joints()[0].translation } else { pos + rw * c.joints()[i].translation };
-            rw = rw * p.rotations[i];
+            rw *= p.rotations[i];
             assert_abs_diff_eq!(pos.distance(p.position(i)), 0.0, epsilon = 1e-12);
         }
     }
