@@ -2,7 +2,8 @@
 //! and 30 joints, with FABRIK and CCD; and a whole 40-character text bake (solve + glTF write).
 //!
 //! Run with `cargo bench --bench ik`. Before timing, the mean iterations per frame over the
-//! circle are printed for each solver and chain length.
+//! circle are printed for each solver and chain length. The Fox group solves the rig
+//! chain (b_Spine01_02..b_Head_05 of meshes/Fox.glb) along its default heart.
 
 use std::f64::consts::TAU;
 use std::hint::black_box;
@@ -74,6 +75,56 @@ fn solve(c: &mut Criterion) {
     group.finish();
 }
 
+/// The Fox chain (b_Spine01_02..b_Head_05, 4 joints in the rig's real frames) on the
+/// heart targets its bake uses.
+fn fox(c: &mut Criterion) {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/Fox.glb");
+    let job = IkJob {
+        rig: Some(rig.clone()),
+        chain: Some("b_Spine01_02..b_Head_05".into()),
+        curve: Some(scenebake::path::CurveKind::Heart),
+        output: dir.path().join("fox.glb"),
+        ..Default::default()
+    };
+    let report = bake_ik(&job, &mut |_, _| {}).unwrap();
+    let targets: Vec<DVec3> = report
+        .targets
+        .iter()
+        .map(|t| DVec3::from_array(*t))
+        .collect();
+    let rc = scenebake::ik::rig::RigDocument::load(&rig)
+        .unwrap()
+        .chain("b_Spine01_02..b_Head_05")
+        .unwrap();
+    let mut group = c.benchmark_group("fox_spine_heart");
+    group
+        .sample_size(20)
+        .measurement_time(std::time::Duration::from_secs(2))
+        .warm_up_time(std::time::Duration::from_millis(500));
+    for (name, solver) in solvers() {
+        let mut pose = rc.chain.rest_pose();
+        let total: usize = targets
+            .iter()
+            .map(|t| solver.solve(&rc.chain, &mut pose, *t).unwrap().iterations)
+            .sum();
+        eprintln!(
+            "fox {name}: mean iterations {:.2} over {} targets",
+            total as f64 / targets.len() as f64,
+            targets.len()
+        );
+        group.bench_function(name, |b| {
+            let mut pose = rc.chain.rest_pose();
+            let mut k = 0;
+            b.iter(|| {
+                k = (k + 1) % targets.len();
+                black_box(solver.solve(&rc.chain, &mut pose, targets[k]).unwrap())
+            })
+        });
+    }
+    group.finish();
+}
+
 fn text_bake(c: &mut Criterion) {
     let dir = tempfile::tempdir().unwrap();
     let text = "THE QUICK BROWN FOX JUMPS OVER 12 DOGS!?";
@@ -103,5 +154,5 @@ fn text_bake(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, solve, text_bake);
+criterion_group!(benches, solve, fox, text_bake);
 criterion_main!(benches);

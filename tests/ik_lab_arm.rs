@@ -320,3 +320,30 @@ fn generated_chain_has_armature_skin_and_meshes() {
     assert!(modes.contains(&gltf::mesh::Mode::LineStrip));
     assert!(l.doc.nodes().any(|n| n.name() == Some("pen_tip")));
 }
+
+#[test]
+fn every_lab_curve_is_reached_by_both_solvers() {
+    let dir = tempfile::tempdir().unwrap();
+    for curve in CurveKind::ALL {
+        for solver in [SolverKind::Fabrik, SolverKind::Ccd] {
+            let job = IkJob {
+                curve: Some(curve),
+                solver,
+                report: None,
+                ..lab_job(
+                    dir.path(),
+                    &format!("{}_{}", curve.as_str(), solver.as_str()),
+                )
+            };
+            let r = bake_ik(&job, &mut |_, _| {}).unwrap();
+            assert_eq!(r.unreachable, 0, "{curve:?} {solver:?}");
+            assert_eq!(
+                r.reached, r.frames,
+                "{curve:?} {solver:?}: max error {}",
+                r.max_error
+            );
+            // Every target lies in the lab's y = 0 plane.
+            assert!(r.targets.iter().all(|t| t[1].abs() < 1e-12), "{curve:?}");
+        }
+    }
+}

@@ -90,7 +90,11 @@ pub const TIP_SPEED_PER_REACH: f64 = TAU * 0.6 / 2.6 / 5.0;
 /// Exactly one chain source (`preset`, `joints`, or `rig` + `chain`) and exactly one path source
 /// (`curve`, `text`, `svg`, `points`) must be given. The drawing plane is perpendicular to the
 /// chain's rest direction (root → end effector) through `center`, seen from the root's side.
-#[derive(Debug, Clone, PartialEq)]
+///
+/// The struct also (de)serialises with serde under the option names (`max-iterations`,
+/// `max-angle`...), every key optional, unknown keys rejected, so scene files can hold a job.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, rename_all = "kebab-case", deny_unknown_fields)]
 pub struct IkJob {
     /// `--preset`.
     pub preset: Option<String>,
@@ -546,6 +550,17 @@ mod tests {
                 .all(|t| t[1].abs() < 1e-12
                     && ((t[0] * t[0] + t[2] * t[2]).sqrt() - 0.6).abs() < 1e-9)
         );
+    }
+
+    #[test]
+    fn jobs_deserialise_under_the_option_names() {
+        let job: IkJob = toml::from_str("preset = \"lab-arm\"\ncurve = \"heart\"\nsolver = \"ccd\"\nmax-iterations = 50\ncenter = [0.0, 0.1, 0.0]\noutput = \"h.glb\"\n").unwrap();
+        assert_eq!(job.curve, Some(CurveKind::Heart));
+        assert_eq!(job.solver, SolverKind::Ccd);
+        assert_eq!(job.max_iterations, 50);
+        assert_eq!(job.tolerance, 1e-4);
+        assert_eq!(job.center, Some(DVec3::new(0.0, 0.1, 0.0)));
+        assert!(toml::from_str::<IkJob>("max_iter = 3").is_err());
     }
 
     #[test]

@@ -108,6 +108,34 @@ mod tests {
     }
 
     #[test]
+    fn ccd_aligns_directions_under_a_non_uniform_parent_scale() {
+        // A squashed, rotated frame above the root: the local update is A⁻¹-based, so one CCD
+        // step at a joint still points the effector straight at the target in world space.
+        let base = DAffine3::from_scale_rotation_translation(
+            DVec3::new(1.0, 3.0, 0.5),
+            DQuat::from_rotation_z(0.4),
+            DVec3::ONE,
+        );
+        let chain = Chain::new(
+            vec![
+                Joint::new("a", DVec3::ZERO),
+                Joint::new("b", DVec3::new(0.0, 1.0, 0.0)),
+                Joint::new("c", DVec3::new(0.0, 1.0, 0.0)),
+            ],
+            base,
+        )
+        .unwrap();
+        let mut pose = chain.rest_pose();
+        let p0 = pose.position(0);
+        let target = p0 + DVec3::new(1.0, 0.5, 0.8);
+        let (from, to) = (pose.tip() - p0, target - p0);
+        assert!(chain.rotate_joint_towards(&mut pose, 0, from, to));
+        chain.fk(&mut pose, 0);
+        let dir = (pose.tip() - p0).normalize();
+        assert_abs_diff_eq!(dir.dot((target - p0).normalize()), 1.0, epsilon = 1e-12);
+    }
+
+    #[test]
     fn ccd_reaches_a_target_with_rotated_parents() {
         let chain = rotated_parent_chain();
         let mut pose = chain.rest_pose();

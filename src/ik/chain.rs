@@ -296,7 +296,7 @@ mod tests {
             } else {
                 pos + rw * c.joints()[i].translation
             };
-            rw = rw * p.rotations[i];
+            rw *= p.rotations[i];
             assert_abs_diff_eq!(pos.distance(p.position(i)), 0.0, epsilon = 1e-12);
         }
     }

@@ -157,6 +157,48 @@ mod tests {
         }
     }
 
+    /// Twist of `delta` about the unit axis `a` (swing-twist decomposition), radians.
+    fn twist_about(delta: DQuat, a: DVec3) -> f64 {
+        let d = if delta.w < 0.0 { -delta } else { delta };
+        2.0 * DVec3::new(d.x, d.y, d.z).dot(a).atan2(d.w)
+    }
+
+    #[test]
+    fn rebuild_adds_no_twist_about_the_bones_between_frames() {
+        // Lab arm with twisted rest rotations: FABRIK must only swing the bones frame to frame.
+        let mut j: Vec<Joint> = Chain::lab_arm().joints().to_vec();
+        j[1].rotation = DQuat::from_rotation_y(0.9);
+        j[2].rotation = DQuat::from_rotation_y(-0.4) * DQuat::from_rotation_x(0.2);
+        let chain = Chain::new(j, DAffine3::IDENTITY).unwrap();
+        let solver = Fabrik::default();
+        let mut pose = chain.rest_pose();
+        let mut prev = pose.clone();
+        for k in 0..150 {
+            let t = std::f64::consts::TAU * k as f64 / 150.0;
+            let r = solver
+                .solve(
+                    &chain,
+                    &mut pose,
+                    DVec3::new(0.6 * t.cos(), 0.0, 0.6 * t.sin()),
+                )
+                .unwrap();
+            assert!(r.reached);
+            if k > 0 {
+                for i in 0..chain.len() - 1 {
+                    // The child's direction in joint i's parent frame before this frame's solve.
+                    let c = (prev.rotations[i] * chain.joints()[i + 1].translation).normalize();
+                    let delta = pose.rotations[i] * prev.rotations[i].inverse();
+                    assert!(
+                        twist_about(delta, c).abs() < 0.2f64.to_radians(),
+                        "frame {k} joint {i}: twist {}°",
+                        twist_about(delta, c).to_degrees()
+                    );
+                }
+            }
+            prev = pose.clone();
+        }
+    }
+
     #[test]
     fn unreachable_target_straightens_the_chain() {
         let chain = Chain::lab_arm();

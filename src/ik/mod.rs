@@ -1,5 +1,24 @@
 //! Inverse kinematics: joint chains, forward kinematics, the CCD and FABRIK solvers, chains
 //! loaded from rigged glTF files, and the bake that turns a target path into an animation.
+//!
+//! Pipeline of [`bake_ik`]: build a [`Chain`] (the lab arm, a straight chain, or a `ROOT..TIP`
+//! path in a rig via [`rig::RigDocument`]) → place the target path on a drawing plane
+//! ([`crate::path`]) and resample it to one target per frame → solve every frame with an
+//! [`IkSolver`], warm-started from the previous frame → write the glTF
+//! ([`crate::export::skin`]) and the [`IkReport`].
+//!
+//! Conventions: world coordinates are glTF's (+Y up, right-handed, scene units); rotations are
+//! unit quaternions (x, y, z, w) local to the joint's parent frame; a chain's base frame carries
+//! everything above the chain root (rig parents, node matrices, scales).
+//!
+//! ```
+//! use scenebake::glam::DVec3;
+//! use scenebake::ik::{Chain, Fabrik, IkSolver};
+//! let arm = Chain::lab_arm();
+//! let mut pose = arm.rest_pose();
+//! let report = Fabrik::default().solve(&arm, &mut pose, DVec3::new(0.6, 0.0, 0.0)).unwrap();
+//! assert!(report.reached && pose.tip().distance(DVec3::new(0.6, 0.0, 0.0)) <= 1e-4);
+//! ```
 
 pub mod bake;
 pub mod ccd;

@@ -21,7 +21,7 @@ pub fn resample(points: &[DVec3], closed: bool, spacing: f64) -> Vec<DVec3> {
         cum.push(cum[cum.len() - 1] + w[0].distance(w[1]));
     }
     let total = cum[cum.len() - 1];
-    if total <= 1e-12 || !(spacing > 0.0) {
+    if total <= 1e-12 || spacing.is_nan() || spacing <= 0.0 {
         return vec![points[0]];
     }
     let min_intervals = if closed { 3 } else { 1 };

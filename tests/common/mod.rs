@@ -22,12 +22,15 @@ pub fn load(path: &Path) -> Loaded {
     Loaded { doc, buffers }
 }
 
+/// Times, values and whether the track is STEP-interpolated.
+pub type Vec3Track = (Vec<f32>, Vec<[f32; 3]>, bool);
+
 /// Per-node animation tracks of one animation: times and values.
 #[derive(Default, Clone)]
 pub struct Tracks {
     pub rotation: HashMap<usize, (Vec<f32>, Vec<[f32; 4]>)>,
-    pub translation: HashMap<usize, (Vec<f32>, Vec<[f32; 3]>, bool)>,
-    pub scale: HashMap<usize, (Vec<f32>, Vec<[f32; 3]>, bool)>,
+    pub translation: HashMap<usize, Vec3Track>,
+    pub scale: HashMap<usize, Vec3Track>,
 }
 
 impl Loaded {
