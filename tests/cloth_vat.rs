@@ -27,8 +27,16 @@ impl Exr {
 fn read_exr(path: &Path) -> Exr {
     let image = read_first_rgba_layer_from_file(
         path,
-        |res, _| (res.width(), res.height(), vec![Vec3::ZERO; res.width() * res.height()]),
-        |(w, _, px): &mut (usize, usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b),
+        |res, _| {
+            (
+                res.width(),
+                res.height(),
+                vec![Vec3::ZERO; res.width() * res.height()],
+            )
+        },
+        |(w, _, px): &mut (usize, usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b)
+        },
     )
     .expect("read back with the exr crate");
     let channels = &image.layer_data.channel_data.channels;
@@ -41,7 +49,10 @@ fn read_exr(path: &Path) -> Exr {
 }
 
 fn lab_job(dir: &Path, frames: usize) -> ClothJob {
-    let mut job = ClothJob::new(ClothSource::LabCloth { resolution: 10 }, dir.join("lab.glb"));
+    let mut job = ClothJob::new(
+        ClothSource::LabCloth { resolution: 10 },
+        dir.join("lab.glb"),
+    );
     job.frames = Some(frames);
     job.vat = Some(dir.join("lab.exr"));
     job
@@ -61,7 +72,10 @@ fn gltf_normals(m: &Morph, f: usize) -> Vec<Vec3> {
     if f == 0 {
         return base;
     }
-    base.iter().zip(m.normal_deltas[f - 1].as_ref().expect("NORMAL delta")).map(|(b, d)| *b + *d).collect()
+    base.iter()
+        .zip(m.normal_deltas[f - 1].as_ref().expect("NORMAL delta"))
+        .map(|(b, d)| *b + *d)
+        .collect()
 }
 
 #[test]
@@ -71,16 +85,28 @@ fn vat_pixels_match_the_gltf_morph_cache_at_every_frame() {
     let job = lab_job(dir.path(), frames);
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     let vat = report.vat.as_ref().expect("a VAT report");
-    let names: Vec<String> = vat.files.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    let names: Vec<String> = vat
+        .files
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
     assert_eq!(names, ["lab.exr", "lab.normals.exr", "lab.json"]);
-    let on_disk: u64 = report.output.iter().map(|p| std::fs::metadata(p).unwrap().len()).sum();
+    let on_disk: u64 = report
+        .output
+        .iter()
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum();
     assert_eq!(report.output_bytes, on_disk, "every file counted");
 
     let m = load_morph(&dir.path().join("lab.glb"));
     let n = m.base.len();
     let img = read_exr(&dir.path().join("lab.exr"));
     let nrm = read_exr(&dir.path().join("lab.normals.exr"));
-    assert_eq!((img.width, img.height), (n, frames + 1), "one column per vertex, one row per frame");
+    assert_eq!(
+        (img.width, img.height),
+        (n, frames + 1),
+        "one column per vertex, one row per frame"
+    );
     assert_eq!((nrm.width, nrm.height), (n, frames + 1));
     let mut lo = Vec3::INFINITY;
     let mut hi = Vec3::NEG_INFINITY;
@@ -90,8 +116,15 @@ fn vat_pixels_match_the_gltf_morph_cache_at_every_frame() {
         for v in 0..n {
             let got = img.at(f, v);
             // base + (p − base) in f32 may differ from p in the last bit.
-            assert!((got - want[v]).abs().max_element() <= 1e-6 * (1.0 + want[v].abs().max_element()), "frame {f} vertex {v}: {got} vs {}", want[v]);
-            assert!((nrm.at(f, v) - want_n[v]).abs().max_element() <= 1e-6, "normal frame {f} vertex {v}");
+            assert!(
+                (got - want[v]).abs().max_element() <= 1e-6 * (1.0 + want[v].abs().max_element()),
+                "frame {f} vertex {v}: {got} vs {}",
+                want[v]
+            );
+            assert!(
+                (nrm.at(f, v) - want_n[v]).abs().max_element() <= 1e-6,
+                "normal frame {f} vertex {v}"
+            );
             assert!((nrm.at(f, v).length() - 1.0).abs() < 1e-5, "unit normals");
             lo = lo.min(got);
             hi = hi.max(got);
@@ -101,9 +134,13 @@ fn vat_pixels_match_the_gltf_morph_cache_at_every_frame() {
     for v in 0..n {
         assert_eq!(img.at(0, v), m.base[v]);
     }
-    assert!(img.at(frames, 0) != img.at(0, 0) || img.at(frames, n - 1) != img.at(0, n - 1), "the cloth moved");
+    assert!(
+        img.at(frames, 0) != img.at(0, 0) || img.at(frames, n - 1) != img.at(0, n - 1),
+        "the cloth moved"
+    );
 
-    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("lab.json")).unwrap()).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("lab.json")).unwrap()).unwrap();
     assert_eq!(json["frames"], frames + 1);
     assert_eq!(json["fps"], report.fps);
     assert_eq!(json["vertex_count"], n);
@@ -128,17 +165,26 @@ fn offset_mode_stores_the_morph_deltas() {
     job.vat_mode = VatMode::Offset;
     job.normals = false;
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
-    assert_eq!(report.vat.as_ref().unwrap().files.len(), 2, "no normal image with --normals off");
+    assert_eq!(
+        report.vat.as_ref().unwrap().files.len(),
+        2,
+        "no normal image with --normals off"
+    );
     assert!(!dir.path().join("lab.normals.exr").exists());
     let m = load_morph(&dir.path().join("lab.glb"));
     let img = read_exr(&dir.path().join("lab.exr"));
     for v in 0..m.base.len() {
         assert_eq!(img.at(0, v), Vec3::ZERO);
         for f in 1..=6 {
-            assert_eq!(img.at(f, v), m.deltas[f - 1][v], "offset = the glTF's POSITION delta, bit for bit");
+            assert_eq!(
+                img.at(f, v),
+                m.deltas[f - 1][v],
+                "offset = the glTF's POSITION delta, bit for bit"
+            );
         }
     }
-    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("lab.json")).unwrap()).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("lab.json")).unwrap()).unwrap();
     assert_eq!(json["mode"], "offset");
     assert!(json["normals"].is_null());
 }
@@ -158,7 +204,8 @@ fn wide_meshes_wrap_into_several_rows_per_frame() {
     let rows = 3;
     assert_eq!((img.width, img.height), (50, (frames + 1) * rows));
     assert_eq!((nrm.width, nrm.height), (50, (frames + 1) * rows));
-    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("lab.json")).unwrap()).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("lab.json")).unwrap()).unwrap();
     assert_eq!(json["layout"]["rows_per_frame"], rows);
     assert_eq!(json["layout"]["width"], 50);
     for f in 0..=frames {
@@ -166,7 +213,11 @@ fn wide_meshes_wrap_into_several_rows_per_frame() {
         let want_n = gltf_normals(&m, f);
         for v in 0..n {
             let (row, col) = (f * rows + v / 50, v % 50);
-            assert!((img.at(row, col) - want[v]).abs().max_element() <= 1e-6 * (1.0 + want[v].abs().max_element()), "frame {f} vertex {v}");
+            assert!(
+                (img.at(row, col) - want[v]).abs().max_element()
+                    <= 1e-6 * (1.0 + want[v].abs().max_element()),
+                "frame {f} vertex {v}"
+            );
             assert!((nrm.at(row, col) - want_n[v]).abs().max_element() <= 1e-6);
         }
         // The unused tail of each frame's last row is zero.
@@ -187,14 +238,21 @@ fn bad_vat_options_name_the_option() {
     job.vat_max_width = 0;
     let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
     assert!(e.contains("--vat-max-width"), "{e}");
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "nothing written");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "nothing written"
+    );
 }
 
 #[test]
 fn vat_follows_the_render_vertices_of_a_seamed_obj() {
     // cloth_z_up.obj has UVs: render vertices are the glTF's, not the particles.
     let dir = tempfile::tempdir().unwrap();
-    let mut job = ClothJob::new(ClothSource::File(mesh_path("cloth_z_up.obj")), dir.path().join("c.gltf"));
+    let mut job = ClothJob::new(
+        ClothSource::File(mesh_path("cloth_z_up.obj")),
+        dir.path().join("c.gltf"),
+    );
     job.frames = Some(3);
     job.gravity = Some(scenebake::glam::DVec3::new(0.0, 0.0, -9.81));
     job.pins = vec!["index:0".parse().unwrap()];
@@ -206,7 +264,9 @@ fn vat_follows_the_render_vertices_of_a_seamed_obj() {
     for f in 0..=3 {
         let want = gltf_frame(&m, f);
         for (v, w) in want.iter().enumerate() {
-            assert!((img.at(f, v) - *w).abs().max_element() <= 1e-6 * (1.0 + w.abs().max_element()));
+            assert!(
+                (img.at(f, v) - *w).abs().max_element() <= 1e-6 * (1.0 + w.abs().max_element())
+            );
         }
     }
 }

@@ -96,7 +96,7 @@ pub struct ClothArgs {
     /// Keep only the frames needed for linear playback to reproduce every baked frame within T
     /// (scene units, largest vertex distance); first and last frames are always kept
     /// [default: off, one morph target per frame].
-    #[arg(long, value_name = "T")]
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
     pub keyframe_tolerance: Option<f64>,
     /// Store morph-target deltas as sparse accessors (changed vertices only) where smaller.
     #[arg(long, value_enum, default_value_t = SparseArg::Auto)]

@@ -46,14 +46,21 @@ pub struct KeyframeSelection {
 impl KeyframeSelection {
     /// Keeps every frame of a cache of `frames` frames.
     pub fn all(frames: usize) -> Self {
-        KeyframeSelection { kept: (0..frames).collect(), max_error: 0.0 }
+        KeyframeSelection {
+            kept: (0..frames).collect(),
+            max_error: 0.0,
+        }
     }
 }
 
 /// Chooses the frames to keep so that playback with `interpolation` reproduces every frame of
 /// `frames` within `tolerance` (scene units), by the greedy forward scan described in the module
 /// documentation.
-pub fn select_keyframes(frames: &RenderFrames, tolerance: f64, interpolation: Interpolation) -> KeyframeSelection {
+pub fn select_keyframes(
+    frames: &RenderFrames,
+    tolerance: f64,
+    interpolation: Interpolation,
+) -> KeyframeSelection {
     let last = frames.frame_count().saturating_sub(1);
     let mut kept = vec![0];
     let mut max_error = 0.0f64;
@@ -75,7 +82,13 @@ pub fn select_keyframes(frames: &RenderFrames, tolerance: f64, interpolation: In
 
 /// The largest playback error over the frames strictly between `a` and `b` when only `a` and `b`
 /// are kept, or `None` as soon as it exceeds `tolerance`.
-fn segment_error(frames: &RenderFrames, a: usize, b: usize, tolerance: f64, interpolation: Interpolation) -> Option<f64> {
+fn segment_error(
+    frames: &RenderFrames,
+    a: usize,
+    b: usize,
+    tolerance: f64,
+    interpolation: Interpolation,
+) -> Option<f64> {
     let base = frames.positions(0);
     let (pa, pb) = (frames.positions(a), frames.positions(b));
     let mut worst = 0.0f64;
@@ -118,7 +131,12 @@ const SPARSE_JSON_OVERHEAD: usize = 160;
 
 /// Indices of the vertices whose delta is not exactly zero, increasing.
 pub fn changed_vertices(delta: &[Vec3]) -> Vec<u32> {
-    delta.iter().enumerate().filter(|(_, d)| **d != Vec3::ZERO).map(|(i, _)| i as u32).collect()
+    delta
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| **d != Vec3::ZERO)
+        .map(|(i, _)| i as u32)
+        .collect()
 }
 
 /// Binary bytes of a sparse VEC3 float accessor with `changed` entries over `vertices` vertices:
@@ -135,7 +153,12 @@ pub fn dense_bytes(vertices: usize) -> usize {
 
 /// Writes one morph-target delta accessor (VEC3 float), sparse when `mode` allows it and it is
 /// smaller. `min_max` writes bounds, which for a sparse accessor cover the implicit zeros too.
-pub fn delta_accessor(b: &mut GltfBuilder, delta: &[Vec3], mode: SparseMode, min_max: bool) -> (json::Index<json::Accessor>, DeltaEncoding) {
+pub fn delta_accessor(
+    b: &mut GltfBuilder,
+    delta: &[Vec3],
+    mode: SparseMode,
+    min_max: bool,
+) -> (json::Index<json::Accessor>, DeltaEncoding) {
     let array = Some(json::buffer::Target::ArrayBuffer);
     if mode == SparseMode::Off {
         return (b.vec3(delta, array, min_max), DeltaEncoding::Dense);
@@ -146,7 +169,10 @@ pub fn delta_accessor(b: &mut GltfBuilder, delta: &[Vec3], mode: SparseMode, min
         changed.push(0);
     }
     if sparse_bytes(changed.len(), delta.len()) + SPARSE_JSON_OVERHEAD < dense_bytes(delta.len()) {
-        (b.sparse_vec3(delta, &changed, min_max), DeltaEncoding::Sparse)
+        (
+            b.sparse_vec3(delta, &changed, min_max),
+            DeltaEncoding::Sparse,
+        )
     } else {
         (b.vec3(delta, array, min_max), DeltaEncoding::Dense)
     }
@@ -192,13 +218,22 @@ mod tests {
     #[test]
     fn step_playback_holds_the_earlier_frame() {
         let f = frames_of(&[0.0, 0.0, 0.5, 0.5, 3.0]);
-        assert_eq!(select_keyframes(&f, 0.0, Interpolation::Step).kept, vec![0, 2, 4]);
+        assert_eq!(
+            select_keyframes(&f, 0.0, Interpolation::Step).kept,
+            vec![0, 2, 4]
+        );
     }
 
     #[test]
     fn zero_tolerance_and_short_caches() {
-        assert_eq!(select_keyframes(&frames_of(&[0.0]), 0.0, Interpolation::Linear).kept, vec![0]);
-        assert_eq!(select_keyframes(&frames_of(&[0.0, 1.0]), 0.0, Interpolation::Linear).kept, vec![0, 1]);
+        assert_eq!(
+            select_keyframes(&frames_of(&[0.0]), 0.0, Interpolation::Linear).kept,
+            vec![0]
+        );
+        assert_eq!(
+            select_keyframes(&frames_of(&[0.0, 1.0]), 0.0, Interpolation::Linear).kept,
+            vec![0, 1]
+        );
     }
 
     #[test]

@@ -25,7 +25,11 @@ impl RenderFrames {
     /// # Panics
     /// When the cache's particle count differs from the mesh's (callers check first).
     pub fn new(mesh: &Mesh, cache: &FrameCache) -> Self {
-        assert_eq!(cache.particle_count(), mesh.particle_count(), "cache and mesh particle counts");
+        assert_eq!(
+            cache.particle_count(),
+            mesh.particle_count(),
+            "cache and mesh particle counts"
+        );
         let vertices = mesh.render_vertices.len();
         let frames = cache.frame_count();
         let mut positions = Vec::with_capacity(frames * vertices);
@@ -36,7 +40,11 @@ impl RenderFrames {
             positions.extend(f.positions);
             normals.extend(f.normals);
         }
-        RenderFrames { vertices, positions, normals }
+        RenderFrames {
+            vertices,
+            positions,
+            normals,
+        }
     }
 
     /// Number of frames (the initial state included).

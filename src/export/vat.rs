@@ -69,12 +69,19 @@ impl VatLayout {
     pub fn new(vertices: usize, frames: usize, max_width: usize) -> Self {
         let width = vertices.clamp(1, max_width.max(1));
         let rows_per_frame = vertices.div_ceil(width).max(1);
-        VatLayout { width, height: frames * rows_per_frame, rows_per_frame }
+        VatLayout {
+            width,
+            height: frames * rows_per_frame,
+            rows_per_frame,
+        }
     }
 
     /// The (row, column) of vertex `v` in frame `f`; row 0 is the top of the image.
     pub fn pixel(&self, frame: usize, vertex: usize) -> (usize, usize) {
-        (frame * self.rows_per_frame + vertex / self.width, vertex % self.width)
+        (
+            frame * self.rows_per_frame + vertex / self.width,
+            vertex % self.width,
+        )
     }
 }
 
@@ -131,11 +138,23 @@ pub struct EncodedVat {
 /// # Errors
 /// [`Error::InvalidOption`] naming `--vat` when `path` does not end in `.exr`.
 pub fn vat_paths(path: &Path) -> Result<(PathBuf, PathBuf)> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
     if ext.as_deref() != Some("exr") || path.file_stem().map_or(true, |s| s.is_empty()) {
-        return Err(Error::option("--vat", format!("{}: the vertex-animation texture must be a file ending in .exr", path.display())));
+        return Err(Error::option(
+            "--vat",
+            format!(
+                "{}: the vertex-animation texture must be a file ending in .exr",
+                path.display()
+            ),
+        ));
     }
-    Ok((path.with_extension("normals.exr"), path.with_extension("json")))
+    Ok((
+        path.with_extension("normals.exr"),
+        path.with_extension("json"),
+    ))
 }
 
 /// Encodes the VAT of `frames` for position image `path` without writing it.
@@ -146,14 +165,29 @@ pub fn vat_paths(path: &Path) -> Result<(PathBuf, PathBuf)> {
 pub fn encode_vat(path: &Path, frames: &RenderFrames, options: &VatOptions) -> Result<EncodedVat> {
     let (normals_path, json_path) = vat_paths(path)?;
     if options.max_width == 0 {
-        return Err(Error::option("--vat-max-width", "0: must be at least 1 pixel"));
+        return Err(Error::option(
+            "--vat-max-width",
+            "0: must be at least 1 pixel",
+        ));
     }
-    let layout = VatLayout::new(frames.vertex_count(), frames.frame_count(), options.max_width);
+    let layout = VatLayout::new(
+        frames.vertex_count(),
+        frames.frame_count(),
+        options.max_width,
+    );
     let positions = stored_positions(frames, options.mode);
-    let mut files = vec![(path.to_path_buf(), exr_bytes(path, &positions, frames.vertex_count(), layout)?)];
+    let mut files = vec![(
+        path.to_path_buf(),
+        exr_bytes(path, &positions, frames.vertex_count(), layout)?,
+    )];
     let normals_name = if options.normals {
-        let normals: Vec<Vec3> = (0..frames.frame_count()).flat_map(|k| frames.normals(k).iter().copied()).collect();
-        files.push((normals_path.clone(), exr_bytes(&normals_path, &normals, frames.vertex_count(), layout)?));
+        let normals: Vec<Vec3> = (0..frames.frame_count())
+            .flat_map(|k| frames.normals(k).iter().copied())
+            .collect();
+        files.push((
+            normals_path.clone(),
+            exr_bytes(&normals_path, &normals, frames.vertex_count(), layout)?,
+        ));
         Some(file_name(&normals_path))
     } else {
         None
@@ -172,7 +206,10 @@ pub fn encode_vat(path: &Path, frames: &RenderFrames, options: &VatOptions) -> R
         normals: normals_name,
         gltf: options.gltf.clone(),
     };
-    let json = serde_json::to_vec_pretty(&manifest).map_err(|source| Error::Json { path: json_path.clone(), source })?;
+    let json = serde_json::to_vec_pretty(&manifest).map_err(|source| Error::Json {
+        path: json_path.clone(),
+        source,
+    })?;
     files.push((json_path, json));
     Ok(EncodedVat { files, manifest })
 }
@@ -182,10 +219,14 @@ fn stored_positions(frames: &RenderFrames, mode: VatMode) -> Vec<Vec3> {
     let base = frames.positions(0);
     (0..frames.frame_count())
         .flat_map(|k| {
-            frames.positions(k).iter().zip(base).map(move |(p, b)| match mode {
-                VatMode::Absolute => *p,
-                VatMode::Offset => *p - *b,
-            })
+            frames
+                .positions(k)
+                .iter()
+                .zip(base)
+                .map(move |(p, b)| match mode {
+                    VatMode::Absolute => *p,
+                    VatMode::Offset => *p - *b,
+                })
         })
         .collect()
 }
@@ -196,26 +237,52 @@ fn exr_bytes(path: &Path, values: &[Vec3], vertices: usize, layout: VatLayout) -
         let (column, row) = (pos.x(), pos.y());
         let (frame, row_in_frame) = (row / layout.rows_per_frame, row % layout.rows_per_frame);
         let vertex = row_in_frame * layout.width + column;
-        let v = if vertex < vertices { values[frame * vertices + vertex] } else { Vec3::ZERO };
+        let v = if vertex < vertices {
+            values[frame * vertices + vertex]
+        } else {
+            Vec3::ZERO
+        };
         (v.x, v.y, v.z)
     };
-    let image = Image::from_encoded_channels((layout.width, layout.height), Encoding::SMALL_LOSSLESS, SpecificChannels::rgb(pixel));
+    let image = Image::from_encoded_channels(
+        (layout.width, layout.height),
+        Encoding::SMALL_LOSSLESS,
+        SpecificChannels::rgb(pixel),
+    );
     let mut bytes = Cursor::new(Vec::new());
-    image.write().to_buffered(&mut bytes).map_err(|e| Error::Export { path: path.into(), message: format!("cannot encode the EXR image: {e}") })?;
+    image
+        .write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| Error::Export {
+            path: path.into(),
+            message: format!("cannot encode the EXR image: {e}"),
+        })?;
     Ok(bytes.into_inner())
 }
 
 /// Per-axis bounds; zeros when empty.
 fn bounds(values: &[Vec3]) -> VatBounds {
     if values.is_empty() {
-        return VatBounds { min: [0.0; 3], max: [0.0; 3] };
+        return VatBounds {
+            min: [0.0; 3],
+            max: [0.0; 3],
+        };
     }
-    let (lo, hi) = values.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
-    VatBounds { min: lo.to_array(), max: hi.to_array() }
+    let (lo, hi) = values
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(*v), hi.max(*v))
+        });
+    VatBounds {
+        min: lo.to_array(),
+        max: hi.to_array(),
+    }
 }
 
 fn file_name(path: &Path) -> String {
-    path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 #[cfg(test)]
@@ -230,7 +297,10 @@ mod tests {
         assert_eq!(l.pixel(0, 9), (2, 1));
         assert_eq!(l.pixel(2, 5), (7, 1));
         let narrow = VatLayout::new(10, 3, 8192);
-        assert_eq!((narrow.width, narrow.rows_per_frame, narrow.height), (10, 1, 3));
+        assert_eq!(
+            (narrow.width, narrow.rows_per_frame, narrow.height),
+            (10, 1, 3)
+        );
         let exact = VatLayout::new(8, 2, 4);
         assert_eq!((exact.width, exact.rows_per_frame), (4, 2));
     }

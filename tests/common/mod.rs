@@ -10,7 +10,9 @@ use scenebake::glam::Vec3;
 use scenebake::mesh::Mesh;
 
 pub fn mesh_path(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("meshes")
+        .join(name)
 }
 
 /// Simulates `job` through the library directly: the reference the exports must match.
@@ -24,7 +26,10 @@ pub fn reference(job: &ClothJob) -> (Mesh, FrameCache) {
 /// Render-vertex positions of frame `k` of the reference.
 pub fn reference_positions(mesh: &Mesh, cache: &FrameCache, k: usize) -> Vec<Vec3> {
     let particles = cache.frame(k);
-    mesh.render_vertices.iter().map(|v| particles[v.particle as usize]).collect()
+    mesh.render_vertices
+        .iter()
+        .map(|v| particles[v.particle as usize])
+        .collect()
 }
 
 /// A morph-target glTF as the `gltf` crate reads it.
@@ -46,7 +51,11 @@ impl Morph {
 
     /// Positions of target `j` (base + delta), as a player computes them at weight 1.
     pub fn target_positions(&self, j: usize) -> Vec<Vec3> {
-        self.base.iter().zip(&self.deltas[j]).map(|(b, d)| *b + *d).collect()
+        self.base
+            .iter()
+            .zip(&self.deltas[j])
+            .map(|(b, d)| *b + *d)
+            .collect()
     }
 
     /// The weights at time `t`, interpolated from the animation's keys (our own sampler).
@@ -60,12 +69,20 @@ impl Morph {
         if t >= self.times[last] {
             return row(last).to_vec();
         }
-        let i = self.times.windows(2).position(|w| w[0] <= t && t < w[1]).unwrap();
+        let i = self
+            .times
+            .windows(2)
+            .position(|w| w[0] <= t && t < w[1])
+            .unwrap();
         if !self.linear {
             return row(i).to_vec();
         }
         let s = (t - self.times[i]) / (self.times[i + 1] - self.times[i]);
-        row(i).iter().zip(row(i + 1)).map(|(a, b)| a + s * (b - a)).collect()
+        row(i)
+            .iter()
+            .zip(row(i + 1))
+            .map(|(a, b)| a + s * (b - a))
+            .collect()
     }
 
     /// Blended positions at time `t`: base + Σ wⱼ·Δⱼ.
@@ -110,12 +127,23 @@ pub fn load_morph(path: &Path) -> Morph {
         gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => w.into_f32().collect(),
         _ => panic!("weights output"),
     };
-    Morph { base, base_normals, deltas, normal_deltas, times, weights, linear }
+    Morph {
+        base,
+        base_normals,
+        deltas,
+        normal_deltas,
+        times,
+        weights,
+        linear,
+    }
 }
 
 /// Largest distance between two point lists.
 #[track_caller]
 pub fn max_distance(a: &[Vec3], b: &[Vec3]) -> f32 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(p, q)| p.distance(*q)).fold(0.0, f32::max)
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| p.distance(*q))
+        .fold(0.0, f32::max)
 }
