@@ -270,3 +270,23 @@ fn vat_follows_the_render_vertices_of_a_seamed_obj() {
         }
     }
 }
+
+#[test]
+fn the_gltf_and_vat_are_replaced_together_or_not_at_all() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = lab_job(dir.path(), 3);
+    std::fs::write(dir.path().join("lab.glb"), b"earlier export").unwrap();
+    std::fs::write(dir.path().join("lab.exr"), b"earlier vat").unwrap();
+    // The JSON's target is a directory: the set fails after the images are staged.
+    std::fs::create_dir(dir.path().join("lab.json")).unwrap();
+    let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
+    assert!(e.contains("lab.json"), "{e}");
+    assert_eq!(std::fs::read(dir.path().join("lab.glb")).unwrap(), b"earlier export");
+    assert_eq!(std::fs::read(dir.path().join("lab.exr")).unwrap(), b"earlier vat");
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["lab.exr", "lab.glb", "lab.json"], "no temporary left behind");
+}

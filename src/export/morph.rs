@@ -135,7 +135,8 @@ pub fn check_cache(path: &Path, mesh: &Mesh, cache: &FrameCache) -> Result<()> {
 /// without writing it.
 ///
 /// # Errors
-/// [`Error::Export`] for a bad extension, a negative tolerance or too few frames; [`Error::Json`].
+/// [`Error::Export`] for a bad extension or too few frames; [`Error::InvalidOption`] naming
+/// `--keyframe-tolerance` when it is negative or not finite; [`Error::Json`].
 pub fn encode_morph_gltf(path: &Path, mesh: &Mesh, frames: &RenderFrames, options: &MorphOptions) -> Result<EncodedMorph> {
     if frames.frame_count() < 2 || frames.vertex_count() != mesh.render_vertices.len() {
         return Err(Error::Export { path: path.into(), message: format!("{} frames of {} vertices: need at least 2 frames of the mesh's {} render vertices", frames.frame_count(), frames.vertex_count(), mesh.render_vertices.len()) });
