@@ -14,7 +14,11 @@ use crate::cloth::preset::{self, lab_cloth};
 use crate::cloth::springs::{surface_springs, volume_springs, SpringKind, SpringSet};
 use crate::cloth::{make_solver, simulate, BakeParams, ClothModel, SolverKind, StepStats};
 use crate::error::{Error, Result};
-use crate::export::{write_morph_gltf, Interpolation, MorphOptions};
+use crate::export::morph::{check_cache, encode_morph_gltf};
+use crate::export::vat::{encode_vat, vat_paths, VatManifest, DEFAULT_MAX_WIDTH};
+use crate::export::{
+    CacheStats, Interpolation, MorphOptions, RenderFrames, SparseMode, VatMode, VatOptions, Written,
+};
 use crate::io::{gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
 use crate::mesh::Mesh;
 use crate::spec::{non_negative, positive};
@@ -95,6 +99,18 @@ pub struct ClothJob {
     pub normals: bool,
     /// `--name`: the glTF mesh/node/animation name (default: the input's file stem).
     pub name: Option<String>,
+    /// `--vat FILE.exr`: also write a vertex-animation texture (`FILE.exr`, `FILE.normals.exr`,
+    /// `FILE.json`; see [`crate::export::vat`]).
+    pub vat: Option<PathBuf>,
+    /// `--vat-mode`: absolute positions or offsets from the base mesh.
+    pub vat_mode: VatMode,
+    /// `--vat-max-width`: most pixels per VAT row; wider meshes wrap into several rows per frame.
+    pub vat_max_width: usize,
+    /// `--keyframe-tolerance T` (scene units): keep only the frames needed to reproduce every
+    /// baked frame within T; `None` keeps one target per frame.
+    pub keyframe_tolerance: Option<f64>,
+    /// `--sparse`: sparse morph-target accessors where smaller (`auto`) or never (`off`).
+    pub sparse: SparseMode,
 }
 
 impl ClothJob {
@@ -120,6 +136,11 @@ impl ClothJob {
             interpolation: Interpolation::Linear,
             normals: true,
             name: None,
+            vat: None,
+            vat_mode: VatMode::Absolute,
+            vat_max_width: DEFAULT_MAX_WIDTH,
+            keyframe_tolerance: None,
+            sparse: SparseMode::Auto,
         }
     }
 }
@@ -175,10 +196,37 @@ pub struct ClothReport {
     pub seconds_export: f64,
     /// The output file(s).
     pub output: Vec<PathBuf>,
-    /// Bytes written.
+    /// Bytes written (every output file, VAT included).
     pub output_bytes: u64,
+    /// The morph cache: targets, kept frames, sparse accessors, sizes.
+    pub cache: CacheReport,
+    /// The vertex-animation texture, when `--vat` was given.
+    pub vat: Option<VatReport>,
     /// Non-fatal quirks of the input.
     pub warnings: Vec<String>,
+}
+
+/// The morph cache as written.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CacheReport {
+    /// `--keyframe-tolerance`, scene units (`None`: every frame kept).
+    pub keyframe_tolerance: Option<f64>,
+    /// Bytes of the glTF file(s) (`.glb`, or `.gltf` plus `.bin`).
+    pub gltf_bytes: u64,
+    /// Targets, kept frames, largest interpolation error against the full bake, accessors.
+    #[serde(flatten)]
+    pub stats: CacheStats,
+}
+
+/// The vertex-animation texture as written.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct VatReport {
+    /// The images and the JSON.
+    pub files: Vec<PathBuf>,
+    /// Their total size.
+    pub bytes: u64,
+    /// What the JSON says (layout, bounds, mode).
+    pub manifest: VatManifest,
 }
 
 /// Spring counts by kind.
@@ -272,6 +320,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     if let Some(d) = job.density {
         positive("--density", d)?;
     }
+    check_export_options(job)?;
 
     let (mesh, springs, mut pinned): (Mesh, SpringSet, Vec<bool>) = match &job.source {
         ClothSource::LabCloth { resolution } => {
@@ -346,6 +395,27 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     })
 }
 
+/// Checks the export options that need no mesh: `--keyframe-tolerance`, `--vat`,
+/// `--vat-max-width`.
+///
+/// # Errors
+/// [`Error::InvalidOption`] naming the option.
+pub fn check_export_options(job: &ClothJob) -> Result<()> {
+    if let Some(t) = job.keyframe_tolerance {
+        non_negative("--keyframe-tolerance", t)?;
+    }
+    if let Some(path) = &job.vat {
+        vat_paths(path)?;
+    }
+    if job.vat_max_width == 0 {
+        return Err(Error::option(
+            "--vat-max-width",
+            "0: must be at least 1 pixel",
+        ));
+    }
+    Ok(())
+}
+
 /// Loads a body file by extension: `.obj`, `.gltf`/`.glb`, `.tet`.
 ///
 /// # Errors
@@ -398,17 +468,15 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
             .to_owned(),
         ClothSource::LabCloth { .. } => "lab_cloth".to_owned(),
     });
-    let written = write_morph_gltf(
-        &job.output,
-        &model.mesh,
-        &sim.cache,
-        &MorphOptions {
-            fps: params.fps,
-            interpolation: job.interpolation,
-            name,
-            normals: job.normals,
-        },
-    )?;
+    let options = MorphOptions {
+        fps: params.fps,
+        interpolation: job.interpolation,
+        name,
+        normals: job.normals,
+        keyframe_tolerance: job.keyframe_tolerance,
+        sparse: job.sparse,
+    };
+    let exported = export(job, model, &sim.cache, options)?;
     let seconds_export = export_start.elapsed().as_secs_f64();
     Ok(report(
         &prepared,
@@ -416,8 +484,64 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
         &sim.frames,
         sim.seconds,
         seconds_export,
-        written,
+        exported,
     ))
+}
+
+/// What the export step wrote.
+struct Exported {
+    written: Written,
+    cache: CacheReport,
+    vat: Option<VatReport>,
+}
+
+/// Encodes the morph glTF and, when asked, the VAT, then writes them all as one atomic set.
+fn export(
+    job: &ClothJob,
+    model: &ClothModel,
+    cache: &crate::cloth::FrameCache,
+    options: MorphOptions,
+) -> Result<Exported> {
+    check_cache(&job.output, &model.mesh, cache)?;
+    let frames = RenderFrames::new(&model.mesh, cache);
+    let morph = encode_morph_gltf(&job.output, &model.mesh, &frames, &options)?;
+    let gltf_bytes = morph.files.iter().map(|(_, b)| b.len() as u64).sum();
+    let mut files = morph.files;
+    let vat = match &job.vat {
+        Some(path) => {
+            let gltf = job
+                .output
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let vat_options = VatOptions {
+                mode: job.vat_mode,
+                max_width: job.vat_max_width,
+                fps: options.fps,
+                normals: job.normals,
+                gltf,
+            };
+            let encoded = encode_vat(path, &frames, &vat_options)?;
+            let report = VatReport {
+                files: encoded.files.iter().map(|(p, _)| p.clone()).collect(),
+                bytes: encoded.files.iter().map(|(_, b)| b.len() as u64).sum(),
+                manifest: encoded.manifest,
+            };
+            files.extend(encoded.files);
+            Some(report)
+        }
+        None => None,
+    };
+    let written = Written::write_all(files)?;
+    Ok(Exported {
+        written,
+        cache: CacheReport {
+            keyframe_tolerance: options.keyframe_tolerance,
+            gltf_bytes,
+            stats: morph.stats,
+        },
+        vat,
+    })
 }
 
 fn report(
@@ -426,8 +550,13 @@ fn report(
     frames: &[StepStats],
     seconds_simulate: f64,
     seconds_export: f64,
-    written: crate::export::Written,
+    exported: Exported,
 ) -> ClothReport {
+    let Exported {
+        written,
+        cache,
+        vat,
+    } = exported;
     let PreparedCloth { model, params, .. } = prepared;
     let total_iterations: usize = frames.iter().map(|f| f.iterations).sum();
     ClothReport {
@@ -464,6 +593,8 @@ fn report(
         seconds_export,
         output: written.files,
         output_bytes: written.bytes,
+        cache,
+        vat,
         warnings: model.warnings.clone(),
     }
 }

@@ -7,6 +7,7 @@ use scenebake::bake::cloth::{ClothJob, ClothSource};
 use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::SolverKind;
 use scenebake::export::Interpolation;
+use scenebake::export::{SparseMode, VatMode};
 use scenebake::glam::DVec3;
 
 /// Simulate a cloth or soft body and write it as a morph-target glTF.
@@ -87,6 +88,44 @@ pub struct ClothArgs {
     /// Write a JSON report of the bake.
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
+    /// Also write a vertex-animation texture: FILE.exr (32-bit float RGB positions, one row per
+    /// frame from frame 0 at the top, one column per glTF vertex), FILE.normals.exr (unit normals,
+    /// same layout; not with --normals off) and FILE.json (layout, bounds, fps, glTF name).
+    #[arg(long, value_name = "FILE.exr")]
+    pub vat: Option<PathBuf>,
+    /// What the VAT's RGB stores: object-space positions, or offsets from the base mesh (frame 0).
+    #[arg(long, value_enum, default_value_t = VatModeArg::Absolute)]
+    pub vat_mode: VatModeArg,
+    /// Most pixels per VAT row; meshes with more vertices wrap into several rows per frame
+    /// (frame f, vertex v → row f*rows_per_frame + v/width, column v%width).
+    #[arg(long, default_value_t = 8192, value_name = "PIXELS")]
+    pub vat_max_width: usize,
+    /// Keep only the frames needed for linear playback to reproduce every baked frame within T
+    /// (scene units, largest vertex distance); first and last frames are always kept
+    /// [default: off, one morph target per frame].
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    pub keyframe_tolerance: Option<f64>,
+    /// Store morph-target deltas as sparse accessors (changed vertices only) where smaller.
+    #[arg(long, value_enum, default_value_t = SparseArg::Auto)]
+    pub sparse: SparseArg,
+}
+
+/// `--vat-mode` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum VatModeArg {
+    /// Object-space positions.
+    Absolute,
+    /// Offsets from the base mesh (frame 0).
+    Offset,
+}
+
+/// `--sparse` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SparseArg {
+    /// Sparse where smaller than dense.
+    Auto,
+    /// Always dense.
+    Off,
 }
 
 /// Generated cloth scenes.
@@ -164,6 +203,17 @@ impl ClothArgs {
         };
         job.normals = self.normals == OnOff::On;
         job.name = self.name.clone();
+        job.vat = self.vat.clone();
+        job.vat_mode = match self.vat_mode {
+            VatModeArg::Absolute => VatMode::Absolute,
+            VatModeArg::Offset => VatMode::Offset,
+        };
+        job.vat_max_width = self.vat_max_width;
+        job.keyframe_tolerance = self.keyframe_tolerance;
+        job.sparse = match self.sparse {
+            SparseArg::Auto => SparseMode::Auto,
+            SparseArg::Off => SparseMode::Off,
+        };
         job
     }
 }

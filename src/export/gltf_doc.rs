@@ -28,6 +28,21 @@ pub struct Written {
     pub bytes: u64,
 }
 
+impl Written {
+    /// Writes a set of (path, bytes) files atomically (see [`write_all_atomically`]).
+    ///
+    /// # Errors
+    /// [`Error::Io`] naming the file that could not be written; nothing is replaced then.
+    pub fn write_all(files: Vec<(PathBuf, Vec<u8>)>) -> Result<Written> {
+        let bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
+        write_all_atomically(&files)?;
+        Ok(Written {
+            files: files.into_iter().map(|(p, _)| p).collect(),
+            bytes,
+        })
+    }
+}
+
 impl Default for GltfBuilder {
     fn default() -> Self {
         Self::new()
@@ -132,6 +147,83 @@ impl GltfBuilder {
         )
     }
 
+    /// A VEC3 float accessor stored sparsely: no buffer view (zeros) plus the values of `data`
+    /// at `changed` (strictly increasing vertex indices, at least one). `min_max` writes bounds of
+    /// the effective values, implicit zeros included. The index and value views carry no target
+    /// and no stride, as the specification requires.
+    ///
+    /// # Panics
+    /// When `changed` is empty (glTF requires at least one sparse entry).
+    pub fn sparse_vec3(
+        &mut self,
+        data: &[Vec3],
+        changed: &[u32],
+        min_max: bool,
+    ) -> json::Index<json::Accessor> {
+        assert!(
+            !changed.is_empty(),
+            "a sparse accessor lists at least one entry"
+        );
+        let bounds = min_max.then(|| bounds_f32(data.iter().map(|v| v.to_array())));
+        let (min, max) = match bounds {
+            Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
+            None => (None, None),
+        };
+        let max_index = changed.iter().copied().max().unwrap_or(0);
+        let (index_bytes, index_type) = if max_index <= u16::MAX as u32 {
+            (
+                changed
+                    .iter()
+                    .flat_map(|&i| (i as u16).to_le_bytes())
+                    .collect::<Vec<u8>>(),
+                json::accessor::ComponentType::U16,
+            )
+        } else {
+            (
+                changed.iter().flat_map(|&i| i.to_le_bytes()).collect(),
+                json::accessor::ComponentType::U32,
+            )
+        };
+        let indices_view = self.view(&index_bytes, None);
+        let values_view = self.view(
+            &f32_bytes(changed.iter().flat_map(|&i| data[i as usize].to_array())),
+            None,
+        );
+        self.root.push(json::Accessor {
+            buffer_view: None,
+            byte_offset: None,
+            count: USize64::from(data.len()),
+            component_type: Valid(json::accessor::GenericComponentType(
+                json::accessor::ComponentType::F32,
+            )),
+            extensions: None,
+            extras: Default::default(),
+            type_: Valid(json::accessor::Type::Vec3),
+            min,
+            max,
+            name: None,
+            normalized: false,
+            sparse: Some(json::accessor::sparse::Sparse {
+                count: USize64::from(changed.len()),
+                indices: json::accessor::sparse::Indices {
+                    buffer_view: indices_view,
+                    byte_offset: USize64(0),
+                    component_type: Valid(json::accessor::IndexComponentType(index_type)),
+                    extensions: None,
+                    extras: Default::default(),
+                },
+                values: json::accessor::sparse::Values {
+                    buffer_view: values_view,
+                    byte_offset: USize64(0),
+                    extensions: None,
+                    extras: Default::default(),
+                },
+                extensions: None,
+                extras: Default::default(),
+            }),
+        })
+    }
+
     /// A VEC2 float accessor (texture coordinates).
     pub fn vec2(&mut self, data: &[[f32; 2]]) -> json::Index<json::Accessor> {
         let bytes = f32_bytes(data.iter().flatten().copied());
@@ -231,7 +323,16 @@ impl GltfBuilder {
     /// # Errors
     /// [`Error::Export`] for an unknown extension or an oversized GLB; [`Error::Io`] when writing
     /// fails (any earlier file at `path` is then left untouched).
-    pub fn write(mut self, path: &Path) -> Result<Written> {
+    pub fn write(self, path: &Path) -> Result<Written> {
+        Written::write_all(self.encode(path)?)
+    }
+
+    /// The files [`GltfBuilder::write`] would write, as (path, bytes) pairs in rename order, so
+    /// that callers can write them atomically together with other files.
+    ///
+    /// # Errors
+    /// [`Error::Export`] for an unknown extension or an oversized GLB; [`Error::Json`].
+    pub fn encode(mut self, path: &Path) -> Result<Vec<(PathBuf, Vec<u8>)>> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -297,12 +398,7 @@ impl GltfBuilder {
             files.push((path.to_path_buf(), json_bytes));
             files
         };
-        let bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
-        write_all_atomically(&files)?;
-        Ok(Written {
-            files: files.into_iter().map(|(p, _)| p).collect(),
-            bytes,
-        })
+        Ok(files)
     }
 }
 

@@ -1,9 +1,15 @@
 //! Writers for output files.
 
 pub mod atomic;
+pub mod compact;
+pub mod frames;
 pub mod gltf_doc;
 pub mod morph;
 pub mod skin;
+pub mod vat;
 
+pub use compact::SparseMode;
+pub use frames::RenderFrames;
 pub use gltf_doc::{GltfBuilder, Written};
-pub use morph::{write_morph_gltf, Interpolation, MorphOptions};
+pub use morph::{write_morph_gltf, CacheStats, Interpolation, MorphOptions};
+pub use vat::{VatMode, VatOptions};

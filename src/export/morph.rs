@@ -5,13 +5,21 @@
 //! With LINEAR interpolation between one-hot weight keys, the blend between frames k and k+1 is
 //! exactly the linear interpolation of their positions. Blender imports the targets as shape keys
 //! named by `mesh.extras.targetNames` (`frame_0001`...).
+//!
+//! Compact caches (see [`super::compact`]): with a keyframe tolerance only the selected frames get
+//! a target and a key (at their true times, so playback stays in sync), and each delta accessor
+//! may be sparse.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
 use gltf_json as json;
 use json::validation::Checked::Valid;
 
+use super::compact::{
+    delta_accessor, select_keyframes, DeltaEncoding, KeyframeSelection, SparseMode,
+};
+use super::frames::RenderFrames;
 use super::gltf_doc::{GltfBuilder, Written};
 use crate::cloth::FrameCache;
 use crate::error::{Error, Result};
@@ -39,6 +47,54 @@ pub struct MorphOptions {
     pub name: String,
     /// Write NORMAL deltas (recomputed from the simulated surface).
     pub normals: bool,
+    /// `--keyframe-tolerance`: keep only the frames needed to reproduce every frame within this
+    /// distance (scene units); `None` keeps every frame.
+    pub keyframe_tolerance: Option<f64>,
+    /// `--sparse`: whether delta accessors may be sparse.
+    pub sparse: SparseMode,
+}
+
+impl MorphOptions {
+    /// Options at their defaults (linear, normals on, every frame, sparse where smaller).
+    pub fn new(name: impl Into<String>, fps: f64) -> Self {
+        MorphOptions {
+            fps,
+            interpolation: Interpolation::Linear,
+            name: name.into(),
+            normals: true,
+            keyframe_tolerance: None,
+            sparse: SparseMode::Auto,
+        }
+    }
+}
+
+/// Size and shape of the morph cache a write produced.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CacheStats {
+    /// Morph targets written (kept frames after frame 0).
+    pub targets: usize,
+    /// Frames baked, the initial state included.
+    pub frames: usize,
+    /// The frames that got a target and a key (frame 0 is the base).
+    pub kept_frames: Vec<usize>,
+    /// Largest distance between a dropped frame as played back and as baked (scene units); 0
+    /// when every frame is kept.
+    pub max_interpolation_error: f64,
+    /// Delta accessors written sparse.
+    pub sparse_accessors: usize,
+    /// Delta accessors written dense.
+    pub dense_accessors: usize,
+    /// Binary bytes of the morph-target deltas (padding included).
+    pub target_bytes: u64,
+}
+
+/// A morph-target glTF encoded in memory, ready to be written with other files.
+#[derive(Debug, Clone)]
+pub struct EncodedMorph {
+    /// (path, bytes) of the `.glb`, or of the `.bin` and `.gltf`, in rename order.
+    pub files: Vec<(PathBuf, Vec<u8>)>,
+    /// What the cache holds.
+    pub stats: CacheStats,
 }
 
 /// Render-vertex positions and normals of one frame.
@@ -78,6 +134,16 @@ pub fn write_morph_gltf(
     cache: &FrameCache,
     options: &MorphOptions,
 ) -> Result<Written> {
+    check_cache(path, mesh, cache)?;
+    let frames = RenderFrames::new(mesh, cache);
+    Written::write_all(encode_morph_gltf(path, mesh, &frames, options)?.files)
+}
+
+/// Checks that `cache` holds at least two frames of `mesh`'s particles.
+///
+/// # Errors
+/// [`Error::Export`] naming `path` otherwise.
+pub fn check_cache(path: &Path, mesh: &Mesh, cache: &FrameCache) -> Result<()> {
     if cache.particle_count() != mesh.particle_count() || cache.frame_count() < 2 {
         return Err(Error::Export {
             path: path.into(),
@@ -89,74 +155,50 @@ pub fn write_morph_gltf(
             ),
         });
     }
+    Ok(())
+}
+
+/// Encodes the morph-target glTF of `frames` (render frames of `mesh`, at least two) for `path`
+/// without writing it.
+///
+/// # Errors
+/// [`Error::Export`] for a bad extension or too few frames; [`Error::InvalidOption`] naming
+/// `--keyframe-tolerance` when it is negative or not finite; [`Error::Json`].
+pub fn encode_morph_gltf(
+    path: &Path,
+    mesh: &Mesh,
+    frames: &RenderFrames,
+    options: &MorphOptions,
+) -> Result<EncodedMorph> {
+    if frames.frame_count() < 2 || frames.vertex_count() != mesh.render_vertices.len() {
+        return Err(Error::Export {
+            path: path.into(),
+            message: format!(
+                "{} frames of {} vertices: need at least 2 frames of the mesh's {} render vertices",
+                frames.frame_count(),
+                frames.vertex_count(),
+                mesh.render_vertices.len()
+            ),
+        });
+    }
+    let selection = match options.keyframe_tolerance {
+        Some(t) if t.is_finite() && t >= 0.0 => select_keyframes(frames, t, options.interpolation),
+        Some(t) => {
+            return Err(Error::option(
+                "--keyframe-tolerance",
+                format!("{t}: must be zero or a positive distance"),
+            ))
+        }
+        None => KeyframeSelection::all(frames.frame_count()),
+    };
     let mut b = GltfBuilder::new();
-    let mut scratch = Vec::new();
-    let base = render_frame(mesh, cache.frame(0), &mut scratch);
-    let array = Some(json::buffer::Target::ArrayBuffer);
-
-    let mut attributes = std::collections::BTreeMap::new();
-    attributes.insert(
-        Valid(json::mesh::Semantic::Positions),
-        b.vec3(&base.positions, array, true),
-    );
-    if options.normals {
-        attributes.insert(
-            Valid(json::mesh::Semantic::Normals),
-            b.vec3(&base.normals, array, false),
-        );
-    }
-    if mesh.has_uvs() {
-        let uvs: Vec<[f32; 2]> = mesh
-            .render_vertices
-            .iter()
-            .map(|v| flip_v(v.uv.unwrap_or_default()))
-            .collect();
-        attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), b.vec2(&uvs));
-    }
-    let indices: Vec<u32> = mesh.render_triangles.iter().flatten().copied().collect();
-    let indices = b.indices(&indices);
-
-    let frames = cache.frame_count();
-    let mut targets = Vec::with_capacity(frames - 1);
-    let mut names = Vec::with_capacity(frames - 1);
-    for k in 1..frames {
-        let f = render_frame(mesh, cache.frame(k), &mut scratch);
-        let dp: Vec<Vec3> = f
-            .positions
-            .iter()
-            .zip(&base.positions)
-            .map(|(p, q)| *p - *q)
-            .collect();
-        let positions = Some(b.vec3(&dp, array, true));
-        let normals = options.normals.then(|| {
-            let dn: Vec<Vec3> = f
-                .normals
-                .iter()
-                .zip(&base.normals)
-                .map(|(n, m)| *n - *m)
-                .collect();
-            b.vec3(&dn, array, false)
-        });
-        targets.push(json::mesh::MorphTarget {
-            positions,
-            normals,
-            tangents: None,
-        });
-        names.push(format!("frame_{k:04}"));
-    }
-
-    let material = b.root.push(json::Material {
-        name: Some("cloth".into()),
-        double_sided: true,
-        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
-            base_color_factor: json::material::PbrBaseColorFactor([0.8, 0.45, 0.3, 1.0]),
-            metallic_factor: json::material::StrengthFactor(0.0),
-            roughness_factor: json::material::StrengthFactor(0.8),
-            ..Default::default()
-        },
-        ..Default::default()
-    });
-    let target_count = targets.len();
+    let (attributes, indices) = base_primitive(&mut b, mesh, frames, options.normals);
+    let (targets, mut stats) = morph_targets(&mut b, frames, &selection, options);
+    let names: Vec<String> = selection.kept[1..]
+        .iter()
+        .map(|k| format!("frame_{k:04}"))
+        .collect();
+    let material = cloth_material(&mut b);
     let gmesh = b.root.push(json::Mesh {
         name: Some(options.name.clone()),
         primitives: vec![json::mesh::Primitive {
@@ -168,7 +210,7 @@ pub fn write_morph_gltf(
             extensions: None,
             extras: Default::default(),
         }],
-        weights: Some(vec![0.0; target_count]),
+        weights: Some(vec![0.0; names.len()]),
         extensions: None,
         extras: Some(
             serde_json::value::to_raw_value(&serde_json::json!({ "targetNames": names })).map_err(
@@ -191,14 +233,137 @@ pub fn write_morph_gltf(
         extras: Default::default(),
     });
     b.root.scene = Some(scene);
+    weights_animation(&mut b, node, &selection.kept, options);
+    stats.frames = frames.frame_count();
+    stats.kept_frames = selection.kept;
+    stats.max_interpolation_error = selection.max_error;
+    Ok(EncodedMorph {
+        files: b.encode(path)?,
+        stats,
+    })
+}
 
-    // Weights: all zero at frame 0, one-hot on target k-1 at frame k.
-    let times: Vec<f32> = (0..frames)
-        .map(|k| (k as f64 / options.fps) as f32)
+/// A primitive's vertex attributes.
+type Attributes = std::collections::BTreeMap<
+    json::validation::Checked<json::mesh::Semantic>,
+    json::Index<json::Accessor>,
+>;
+
+/// The base (frame 0) attributes and the triangle indices.
+fn base_primitive(
+    b: &mut GltfBuilder,
+    mesh: &Mesh,
+    frames: &RenderFrames,
+    normals: bool,
+) -> (Attributes, json::Index<json::Accessor>) {
+    let array = Some(json::buffer::Target::ArrayBuffer);
+    let mut attributes = std::collections::BTreeMap::new();
+    attributes.insert(
+        Valid(json::mesh::Semantic::Positions),
+        b.vec3(frames.positions(0), array, true),
+    );
+    if normals {
+        attributes.insert(
+            Valid(json::mesh::Semantic::Normals),
+            b.vec3(frames.normals(0), array, false),
+        );
+    }
+    if mesh.has_uvs() {
+        let uvs: Vec<[f32; 2]> = mesh
+            .render_vertices
+            .iter()
+            .map(|v| flip_v(v.uv.unwrap_or_default()))
+            .collect();
+        attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), b.vec2(&uvs));
+    }
+    let indices: Vec<u32> = mesh.render_triangles.iter().flatten().copied().collect();
+    (attributes, b.indices(&indices))
+}
+
+/// One target per kept frame after frame 0: POSITION (and NORMAL) deltas from the base, dense
+/// or sparse.
+fn morph_targets(
+    b: &mut GltfBuilder,
+    frames: &RenderFrames,
+    selection: &KeyframeSelection,
+    options: &MorphOptions,
+) -> (Vec<json::mesh::MorphTarget>, CacheStats) {
+    let mut stats = CacheStats {
+        targets: 0,
+        frames: 0,
+        kept_frames: Vec::new(),
+        max_interpolation_error: 0.0,
+        sparse_accessors: 0,
+        dense_accessors: 0,
+        target_bytes: 0,
+    };
+    let start = b.buffer_len();
+    let mut count = |e: DeltaEncoding| match e {
+        DeltaEncoding::Sparse => stats.sparse_accessors += 1,
+        DeltaEncoding::Dense => stats.dense_accessors += 1,
+    };
+    let mut targets = Vec::with_capacity(selection.kept.len().saturating_sub(1));
+    for &k in &selection.kept[1..] {
+        let dp = difference(frames.positions(k), frames.positions(0));
+        let (positions, e) = delta_accessor(b, &dp, options.sparse, true);
+        count(e);
+        let normals = options.normals.then(|| {
+            let (n, e) = delta_accessor(
+                b,
+                &difference(frames.normals(k), frames.normals(0)),
+                options.sparse,
+                false,
+            );
+            count(e);
+            n
+        });
+        targets.push(json::mesh::MorphTarget {
+            positions: Some(positions),
+            normals,
+            tangents: None,
+        });
+    }
+    stats.targets = targets.len();
+    stats.target_bytes = (b.buffer_len() - start) as u64;
+    (targets, stats)
+}
+
+/// `a - b` element by element.
+fn difference(a: &[Vec3], b: &[Vec3]) -> Vec<Vec3> {
+    a.iter().zip(b).map(|(p, q)| *p - *q).collect()
+}
+
+/// The double-sided cloth material.
+fn cloth_material(b: &mut GltfBuilder) -> json::Index<json::Material> {
+    b.root.push(json::Material {
+        name: Some("cloth".into()),
+        double_sided: true,
+        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+            base_color_factor: json::material::PbrBaseColorFactor([0.8, 0.45, 0.3, 1.0]),
+            metallic_factor: json::material::StrengthFactor(0.0),
+            roughness_factor: json::material::StrengthFactor(0.8),
+            ..Default::default()
+        },
+        ..Default::default()
+    })
+}
+
+/// Weights keyed at each kept frame's true time k / fps: all zero at frame 0, one-hot on the
+/// frame's own target after.
+fn weights_animation(
+    b: &mut GltfBuilder,
+    node: json::Index<json::Node>,
+    kept: &[usize],
+    options: &MorphOptions,
+) {
+    let targets = kept.len() - 1;
+    let times: Vec<f32> = kept
+        .iter()
+        .map(|&k| (k as f64 / options.fps) as f32)
         .collect();
-    let mut weights = vec![0.0f32; frames * target_count];
-    for k in 1..frames {
-        weights[k * target_count + (k - 1)] = 1.0;
+    let mut weights = vec![0.0f32; kept.len() * targets];
+    for i in 1..kept.len() {
+        weights[i * targets + (i - 1)] = 1.0;
     }
     let input = b.scalars(&times, true);
     let output = b.scalars(&weights, false);
@@ -229,7 +394,6 @@ pub fn write_morph_gltf(
         extensions: None,
         extras: Default::default(),
     });
-    b.write(path)
 }
 
 /// OBJ texture coordinates have v up; glTF's have v down.

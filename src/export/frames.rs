@@ -1,0 +1,75 @@
+//! Render-vertex frames: the particle cache mapped onto the render surface once, shared by every
+//! writer that needs it (morph targets, vertex-animation textures, keyframe selection).
+
+use glam::Vec3;
+
+use super::morph::render_frame;
+use crate::cloth::FrameCache;
+use crate::mesh::Mesh;
+
+/// Positions and normals of every render vertex at every frame 0..=N.
+///
+/// Layout: frame-major, `positions[frame * vertices + vertex]` (metres) and the same for unit
+/// normals; vertices in the order of [`Mesh::render_vertices`], which is the exported glTF's
+/// vertex order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderFrames {
+    vertices: usize,
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+}
+
+impl RenderFrames {
+    /// Maps every frame of `cache` onto `mesh`'s render vertices, with smooth normals.
+    ///
+    /// # Panics
+    /// When the cache's particle count differs from the mesh's (callers check first).
+    pub fn new(mesh: &Mesh, cache: &FrameCache) -> Self {
+        assert_eq!(
+            cache.particle_count(),
+            mesh.particle_count(),
+            "cache and mesh particle counts"
+        );
+        let vertices = mesh.render_vertices.len();
+        let frames = cache.frame_count();
+        let mut positions = Vec::with_capacity(frames * vertices);
+        let mut normals = Vec::with_capacity(frames * vertices);
+        let mut scratch = Vec::new();
+        for k in 0..frames {
+            let f = render_frame(mesh, cache.frame(k), &mut scratch);
+            positions.extend(f.positions);
+            normals.extend(f.normals);
+        }
+        RenderFrames {
+            vertices,
+            positions,
+            normals,
+        }
+    }
+
+    /// Number of frames (the initial state included).
+    pub fn frame_count(&self) -> usize {
+        self.positions.len().checked_div(self.vertices).unwrap_or(0)
+    }
+
+    /// Number of render vertices per frame.
+    pub fn vertex_count(&self) -> usize {
+        self.vertices
+    }
+
+    /// Render-vertex positions of frame `k`, m.
+    ///
+    /// # Panics
+    /// When `k >= frame_count()`.
+    pub fn positions(&self, k: usize) -> &[Vec3] {
+        &self.positions[k * self.vertices..(k + 1) * self.vertices]
+    }
+
+    /// Render-vertex unit normals of frame `k`.
+    ///
+    /// # Panics
+    /// When `k >= frame_count()`.
+    pub fn normals(&self, k: usize) -> &[Vec3] {
+        &self.normals[k * self.vertices..(k + 1) * self.vertices]
+    }
+}
