@@ -8,10 +8,7 @@
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
-use super::solver::{
-    check, finish, stretch_if_unreachable, too_close, unfold_if_degenerate, IkSolver, SolveReport,
-    SolverConfig,
-};
+use super::solver::{begin, finish, too_close, Begin, IkSolver, SolveReport, SolverConfig};
 use crate::error::Result;
 
 /// The CCD solver.
@@ -23,19 +20,12 @@ pub struct Ccd {
 
 impl IkSolver for Ccd {
     fn solve(&self, chain: &Chain, pose: &mut Pose, target: DVec3) -> Result<SolveReport> {
-        check(chain, pose, target)?;
         let cfg = &self.config;
-        let start = cfg.max_angle.map(|_| pose.clone());
-        if let Some(r) = stretch_if_unreachable(chain, pose, target, cfg) {
-            return Ok(SolveReport {
-                unreachable: true,
-                ..finish(chain, pose, start.as_ref(), target, r.iterations, cfg)
-            });
-        }
+        let start = match begin(chain, pose, target, cfg)? {
+            Begin::Done(report) => return Ok(report),
+            Begin::Iterate { start } => start,
+        };
         let n = chain.len();
-        if pose.tip().distance(target) > cfg.tolerance {
-            unfold_if_degenerate(chain, pose, target);
-        }
         let mut iterations = 0;
         while iterations < cfg.max_iterations && pose.tip().distance(target) > cfg.tolerance {
             iterations += 1;

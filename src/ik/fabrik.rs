@@ -12,8 +12,7 @@ use glam::DVec3;
 
 use super::chain::{Chain, Pose};
 use super::solver::{
-    aim_at_positions, check, finish, stretch_if_unreachable, too_close, unfold_if_degenerate,
-    IkSolver, SolveReport, SolverConfig,
+    aim_at_positions, begin, finish, too_close, Begin, IkSolver, SolveReport, SolverConfig,
 };
 use crate::error::Result;
 
@@ -43,19 +42,12 @@ pub fn fabrik_pass(p: &mut [DVec3], d: &[f64], target: DVec3) {
 
 impl IkSolver for Fabrik {
     fn solve(&self, chain: &Chain, pose: &mut Pose, target: DVec3) -> Result<SolveReport> {
-        check(chain, pose, target)?;
         let cfg = &self.config;
-        let start = cfg.max_angle.map(|_| pose.clone());
-        if let Some(r) = stretch_if_unreachable(chain, pose, target, cfg) {
-            return Ok(SolveReport {
-                unreachable: true,
-                ..finish(chain, pose, start.as_ref(), target, r.iterations, cfg)
-            });
-        }
+        let start = match begin(chain, pose, target, cfg)? {
+            Begin::Done(report) => return Ok(report),
+            Begin::Iterate { start } => start,
+        };
         let n = chain.len();
-        if pose.tip().distance(target) > cfg.tolerance {
-            unfold_if_degenerate(chain, pose, target);
-        }
         let mut p: Vec<DVec3> = (0..n).map(|i| pose.position(i)).collect();
         let d: Vec<f64> = (0..n - 1).map(|i| p[i + 1].distance(p[i])).collect();
         let mut iterations = 0;

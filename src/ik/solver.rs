@@ -156,6 +156,39 @@ pub(crate) fn aim_at_positions(chain: &Chain, pose: &mut Pose, desired: &[DVec3]
     pose.world[n - 1] = pose.world[n - 2] * chain.local(n - 1, pose.rotations[n - 1]);
 }
 
+/// How a solve starts, shared by every solver.
+pub(crate) enum Begin {
+    /// Nothing to iterate: the target is out of reach and the chain was stretched towards it.
+    Done(SolveReport),
+    /// Iterate; `start` is the pose to limit rotations against (with `max_angle`).
+    Iterate {
+        /// The pose before the solve, when a rotation limit applies.
+        start: Option<Pose>,
+    },
+}
+
+/// The common start of a solve: checks the input, stretches the chain towards an unreachable
+/// target, and unfolds a straight chain whose target lies on its line.
+pub(crate) fn begin(
+    chain: &Chain,
+    pose: &mut Pose,
+    target: DVec3,
+    cfg: &SolverConfig,
+) -> Result<Begin> {
+    check(chain, pose, target)?;
+    let start = cfg.max_angle.map(|_| pose.clone());
+    if let Some(r) = stretch_if_unreachable(chain, pose, target, cfg) {
+        return Ok(Begin::Done(SolveReport {
+            unreachable: true,
+            ..finish(chain, pose, start.as_ref(), target, r.iterations, cfg)
+        }));
+    }
+    if pose.tip().distance(target) > cfg.tolerance {
+        unfold_if_degenerate(chain, pose, target);
+    }
+    Ok(Begin::Iterate { start })
+}
+
 /// Applies the optional rotation limit relative to `start` and computes the final report.
 pub(crate) fn finish(
     chain: &Chain,

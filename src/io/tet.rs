@@ -67,77 +67,84 @@ pub fn parse_tet(text: &str, path: &Path) -> Result<Mesh> {
             format!("header announces {n} points and {m} tetrahedra: nothing to simulate"),
         ));
     }
+    let mut rows = Rows {
+        lines,
+        last_line: header_line,
+        path,
+    };
     let mut positions = Vec::with_capacity(n);
-    let mut last_line = header_line;
     for k in 0..n {
-        let (line, l) = lines.next().ok_or_else(|| {
-            err(
-                last_line,
-                format!("file ends after {k} of the {n} points the header announces"),
-            )
-        })?;
-        last_line = line;
-        let c: Vec<f64> = l
-            .split_whitespace()
-            .map(str::parse)
-            .collect::<std::result::Result<_, _>>()
-            .map_err(|_| {
-                err(
-                    line,
-                    format!("point {k}: expected three numbers, found `{l}`"),
-                )
-            })?;
-        if c.len() != 3 {
-            return Err(err(
-                line,
-                format!("point {k}: expected three numbers, found {}", c.len()),
-            ));
-        }
+        let (line, c) = rows.next::<f64, 3>(k, n, ("point", "points"), "numbers")?;
         if c.iter().any(|v| !v.is_finite()) {
             return Err(err(line, format!("point {k}: non-finite coordinate")));
         }
-        positions.push(DVec3::new(c[0], c[1], c[2]));
+        positions.push(DVec3::from_array(c));
     }
     let mut tets = Vec::with_capacity(m);
     for k in 0..m {
-        let (line, l) = lines.next().ok_or_else(|| {
-            err(
-                last_line,
-                format!("file ends after {k} of the {m} tetrahedra the header announces"),
-            )
-        })?;
-        last_line = line;
-        let idx: Vec<usize> = l
-            .split_whitespace()
-            .map(str::parse)
-            .collect::<std::result::Result<_, _>>()
-            .map_err(|_| {
-                err(
-                    line,
-                    format!("tetrahedron {k}: expected four indices, found `{l}`"),
-                )
-            })?;
-        if idx.len() != 4 {
-            return Err(err(
-                line,
-                format!(
-                    "tetrahedron {k}: expected four indices, found {}",
-                    idx.len()
-                ),
-            ));
-        }
+        let (line, idx) = rows.next::<usize, 4>(k, m, ("tetrahedron", "tetrahedra"), "indices")?;
         if let Some(bad) = idx.iter().find(|&&i| i >= n) {
             return Err(err(
                 line,
                 format!("tetrahedron {k}: index {bad} out of range (0..{n})"),
             ));
         }
-        tets.push([idx[0] as u32, idx[1] as u32, idx[2] as u32, idx[3] as u32]);
+        tets.push(idx.map(|i| i as u32));
     }
     let triangles = boundary(&positions, &tets);
     let mut mesh = Mesh::from_triangles(path.display().to_string(), positions, triangles);
     mesh.tets = tets;
     Ok(mesh)
+}
+
+/// The data lines of a `.tet` file, read one fixed-width row at a time.
+struct Rows<'a, I> {
+    lines: I,
+    last_line: usize,
+    path: &'a Path,
+}
+
+impl<'a, 'l, I: Iterator<Item = (usize, &'l str)>> Rows<'a, I> {
+    /// Row `k` of `count` elements named `what` (plural `plural`), holding exactly `N` values
+    /// (`unit` names them in errors). Returns the row's line number and values.
+    fn next<T: std::str::FromStr, const N: usize>(
+        &mut self,
+        k: usize,
+        count: usize,
+        (what, plural): (&str, &str),
+        unit: &str,
+    ) -> Result<(usize, [T; N])> {
+        let err = |line: usize, message: String| Error::Parse {
+            path: self.path.into(),
+            line: Some(line),
+            message,
+        };
+        let (line, l) = self.lines.next().ok_or_else(|| {
+            err(
+                self.last_line,
+                format!("file ends after {k} of the {count} {plural} the header announces"),
+            )
+        })?;
+        self.last_line = line;
+        let values: Vec<T> = l
+            .split_whitespace()
+            .map(str::parse)
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| {
+                err(
+                    line,
+                    format!("{what} {k}: expected {N} {unit}, found `{l}`"),
+                )
+            })?;
+        let found = values.len();
+        let row: [T; N] = values.try_into().map_err(|_| {
+            err(
+                line,
+                format!("{what} {k}: expected {N} {unit}, found {found}"),
+            )
+        })?;
+        Ok((line, row))
+    }
 }
 
 /// Faces used by exactly one tetrahedron, wound so their normal points away from the fourth
