@@ -82,6 +82,8 @@ fn unreadable_inputs_name_the_file_and_the_problem() {
         (f("invalid_json.gltf"), vec!["invalid_json.gltf", "EOF"]),
         // Found by fuzzing: the gltf crate's validator panicked on this one.
         (f("position_accessor_out_of_range.gltf"), vec!["position_accessor_out_of_range.gltf", "meshes[0].primitives[0].attributes.POSITION refers to accessor 0, but the file has 0 accessors"]),
+        // Found by fuzzing: an image with a bufferView but no mimeType panicked the pre-check.
+        (f("image_view_without_mime.gltf"), vec!["image_view_without_mime.gltf", "invalid glTF"]),
         (f("short.tet"), vec!["short.tet:4", "3 of the 10 points"]),
         (
             f("tet_bad_index.tet"),

@@ -69,16 +69,20 @@ fn check_position_accessors(path: &Path, gltf: &gltf::Gltf) -> Result<()> {
 }
 
 fn check_external_files(path: &Path, gltf: &gltf::Gltf) -> Result<()> {
-    let uris = gltf
-        .buffers()
-        .filter_map(|b| match b.source() {
-            gltf::buffer::Source::Uri(u) => Some(("buffer", b.index(), u)),
-            gltf::buffer::Source::Bin => None,
-        })
-        .chain(gltf.images().filter_map(|i| match i.source() {
-            gltf::image::Source::Uri { uri, .. } => Some(("image", i.index(), uri)),
-            gltf::image::Source::View { .. } => None,
-        }));
+    // Raw JSON fields only: the document is not validated yet, and the crate's accessors
+    // (`Image::source` and friends) unwrap fields that validation would have checked.
+    let root = gltf.document.as_json();
+    let buffers = root
+        .buffers
+        .iter()
+        .enumerate()
+        .filter_map(|(i, b)| b.uri.as_deref().map(|u| ("buffer", i, u)));
+    let images = root
+        .images
+        .iter()
+        .enumerate()
+        .filter_map(|(i, im)| im.uri.as_deref().map(|u| ("image", i, u)));
+    let uris = buffers.chain(images);
     for (what, index, uri) in uris {
         let file = uri_path(path, uri);
         if !uri.starts_with("data:") && !file.exists() {
