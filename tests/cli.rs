@@ -434,3 +434,113 @@ fn inspect_rejects_a_file_the_gltf_crate_would_panic_on() {
         &["refers to accessor 0, but the file has 0 accessors"],
     );
 }
+
+#[test]
+fn bad_ik_options_name_the_option_or_joint() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = out_path(&dir);
+    let fox = mesh("Fox.glb");
+    let fox = fox.to_str().unwrap();
+    let cases: &[(&[&str], &[&str])] = &[
+        (
+            &["--preset", "lab-arm", "--curve", "spiral"],
+            &["--curve", "spiral", "circle"],
+        ),
+        (
+            &["--preset", "lab-arm", "--text", ""],
+            &["--text", "nothing to draw"],
+        ),
+        (&["--preset", "lab-arm"], &["--curve"]),
+        (
+            &["--preset", "lab-arm", "--curve", "circle", "--text", "HI"],
+            &["--curve", "--text"],
+        ),
+        (&["--curve", "circle"], &["--preset"]),
+        (
+            &["--preset", "lab-arm", "--curve", "circle", "--fps", "0"],
+            &["--fps", "positive"],
+        ),
+        (
+            &[
+                "--preset", "lab-arm", "--curve", "circle", "--center", "1,2",
+            ],
+            &["--center", "3 comma-separated"],
+        ),
+        (
+            &[
+                "--rig",
+                fox,
+                "--chain",
+                "b_Spine01_02..b_Nope",
+                "--curve",
+                "heart",
+            ],
+            &["Fox.glb", "b_Nope"],
+        ),
+        (
+            &[
+                "--rig",
+                fox,
+                "--chain",
+                "b_Head_05..b_Spine01_02",
+                "--curve",
+                "heart",
+            ],
+            &["Fox.glb", "not below"],
+        ),
+        (
+            &[
+                "--rig",
+                "/nonexistent/rig.glb",
+                "--chain",
+                "a..b",
+                "--curve",
+                "heart",
+            ],
+            &["/nonexistent/rig.glb"],
+        ),
+    ];
+    for (extra, words) in cases {
+        let mut args = vec!["ik", "-o", &out];
+        args.extend_from_slice(extra);
+        fails_with(&args, words);
+    }
+}
+
+/// Ctrl-C during a bake: exit status 130, the earlier export intact, no temporary left.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_bake_loses_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("keep.glb");
+    std::fs::write(&out, b"earlier export").unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+        .args([
+            "-q",
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--resolution",
+            "150",
+            "--frames",
+            "100000",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "the handler exits with 130");
+    assert_eq!(std::fs::read(&out).unwrap(), b"earlier export");
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, vec!["keep.glb".to_string()]);
+}
