@@ -63,7 +63,9 @@ impl Mesh {
         let n = positions.len() as u32;
         Mesh {
             name,
-            render_vertices: (0..n).map(|particle| RenderVertex { particle, uv: None }).collect(),
+            render_vertices: (0..n)
+                .map(|particle| RenderVertex { particle, uv: None })
+                .collect(),
             render_triangles: triangles.clone(),
             file_index: (0..n).collect(),
             positions,

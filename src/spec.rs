@@ -9,7 +9,10 @@ use crate::error::{Error, Result};
 pub fn parse_numbers<const N: usize>(option: &str, text: &str, form: &str) -> Result<[f64; N]> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     if parts.len() != N {
-        return Err(Error::option(option, format!("`{text}`: expected {N} comma-separated numbers ({form})")));
+        return Err(Error::option(
+            option,
+            format!("`{text}`: expected {N} comma-separated numbers ({form})"),
+        ));
     }
     let mut out = [0.0; N];
     for (slot, p) in out.iter_mut().zip(&parts) {
@@ -17,7 +20,12 @@ pub fn parse_numbers<const N: usize>(option: &str, text: &str, form: &str) -> Re
             .parse::<f64>()
             .ok()
             .filter(|v| v.is_finite())
-            .ok_or_else(|| Error::option(option, format!("`{text}`: `{p}` is not a finite number ({form})")))?;
+            .ok_or_else(|| {
+                Error::option(
+                    option,
+                    format!("`{text}`: `{p}` is not a finite number ({form})"),
+                )
+            })?;
     }
     Ok(out)
 }
@@ -32,7 +40,10 @@ pub fn positive(option: &str, value: f64) -> Result<f64> {
     if value.is_finite() && value > 0.0 {
         Ok(value)
     } else {
-        Err(Error::option(option, format!("{value}: must be a positive number")))
+        Err(Error::option(
+            option,
+            format!("{value}: must be a positive number"),
+        ))
     }
 }
 
@@ -41,7 +52,10 @@ pub fn non_negative(option: &str, value: f64) -> Result<f64> {
     if value.is_finite() && value >= 0.0 {
         Ok(value)
     } else {
-        Err(Error::option(option, format!("{value}: must be zero or a positive number")))
+        Err(Error::option(
+            option,
+            format!("{value}: must be zero or a positive number"),
+        ))
     }
 }
 
@@ -51,7 +65,10 @@ mod tests {
 
     #[test]
     fn vectors_parse_and_reject_garbage() {
-        assert_eq!(parse_vec3("--gravity", "0, -9.81,0").unwrap(), DVec3::new(0.0, -9.81, 0.0));
+        assert_eq!(
+            parse_vec3("--gravity", "0, -9.81,0").unwrap(),
+            DVec3::new(0.0, -9.81, 0.0)
+        );
         for bad in ["1,2", "1,2,3,4", "a,b,c", "1,nan,2", ""] {
             let e = parse_vec3("--gravity", bad).unwrap_err().to_string();
             assert!(e.contains("--gravity"), "{e}");

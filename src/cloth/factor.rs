@@ -7,8 +7,7 @@
 //! [`fill_reducing_order`], so the factor needs no permutation at solve time.
 
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholeskyRaw,
-    SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
@@ -44,19 +43,33 @@ pub fn upper_from_triplets(n: usize, triplets: &[(usize, usize, f64)]) -> CsMat<
 fn faer_view(upper: &CsMat<f64>) -> SparseColMatRef<'_, usize, f64> {
     assert!(upper.is_csc(), "factor expects compressed columns");
     let n = upper.cols();
-    let symbolic = SymbolicSparseColMatRef::new_checked(n, n, upper.indptr().into_raw_storage(), None, upper.indices());
+    let symbolic = SymbolicSparseColMatRef::new_checked(
+        n,
+        n,
+        upper.indptr().into_raw_storage(),
+        None,
+        upper.indices(),
+    );
     SparseColMatRef::new(symbolic, upper.data())
 }
 
 /// A fill-reducing (approximate minimum degree) order for the n×n symmetric pattern given by
 /// `pairs` (plus the diagonal): `order[new] = old`.
-pub fn fill_reducing_order(n: usize, pairs: impl Iterator<Item = (usize, usize)>) -> Result<Vec<u32>> {
+pub fn fill_reducing_order(
+    n: usize,
+    pairs: impl Iterator<Item = (usize, usize)>,
+) -> Result<Vec<u32>> {
     let mut triplets: Vec<(usize, usize, f64)> = (0..n).map(|i| (i, i, 1.0)).collect();
     triplets.extend(pairs.map(|(a, b)| (a.min(b), a.max(b), 1.0)));
     let upper = upper_from_triplets(n, &triplets);
     let view = faer_view(&upper);
-    let symbolic = factorize_symbolic_cholesky(view.symbolic(), Side::Upper, SymmetricOrdering::Amd, simplicial())
-        .map_err(|e| Error::Factorisation(format!("ordering: {e:?}")))?;
+    let symbolic = factorize_symbolic_cholesky(
+        view.symbolic(),
+        Side::Upper,
+        SymmetricOrdering::Amd,
+        simplicial(),
+    )
+    .map_err(|e| Error::Factorisation(format!("ordering: {e:?}")))?;
     Ok(match symbolic.perm() {
         Some(perm) => perm.arrays().0.iter().map(|&i| i as u32).collect(),
         None => (0..n as u32).collect(),
@@ -79,11 +92,17 @@ impl Cholesky {
     pub fn new(upper: &CsMat<f64>) -> Result<Self> {
         let n = upper.cols();
         let view = faer_view(upper);
-        let symbolic = factorize_symbolic_cholesky(view.symbolic(), Side::Upper, SymmetricOrdering::Identity, simplicial())
-            .map_err(|e| Error::Factorisation(format!("{e:?}")))?;
+        let symbolic = factorize_symbolic_cholesky(
+            view.symbolic(),
+            Side::Upper,
+            SymmetricOrdering::Identity,
+            simplicial(),
+        )
+        .map_err(|e| Error::Factorisation(format!("{e:?}")))?;
         let mut l_values = vec![0.0; symbolic.len_val()];
         let par = Par::Seq;
-        let mut buffer = MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
+        let mut buffer =
+            MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
         symbolic
             .factorize_numeric_llt(
                 &mut l_values,
@@ -94,7 +113,9 @@ impl Cholesky {
                 MemStack::new(&mut buffer),
                 Default::default(),
             )
-            .map_err(|e| Error::Factorisation(format!("matrix is not positive definite ({e:?})")))?;
+            .map_err(|e| {
+                Error::Factorisation(format!("matrix is not positive definite ({e:?})"))
+            })?;
         let SymbolicCholeskyRaw::Simplicial(simp) = symbolic.raw() else {
             return Err(Error::Factorisation("expected a simplicial factor".into()));
         };
@@ -118,9 +139,11 @@ impl Cholesky {
                     f.values.push(v);
                 }
             }
-            let d = diagonal.filter(|d| *d > 0.0 && d.is_finite()).ok_or_else(|| {
-                Error::Factorisation(format!("zero or non-finite pivot in column {j}"))
-            })?;
+            let d = diagonal
+                .filter(|d| *d > 0.0 && d.is_finite())
+                .ok_or_else(|| {
+                    Error::Factorisation(format!("zero or non-finite pivot in column {j}"))
+                })?;
             f.inv_diagonal.push(1.0 / d);
         }
         f.col_start.push(f.rows.len() as u32);
@@ -184,7 +207,9 @@ mod tests {
         let trip = path_matrix(n);
         let a = upper_from_triplets(n, &trip);
         let f = Cholesky::new(&a).unwrap();
-        let x_true: Vec<DVec3> = (0..n).map(|i| DVec3::new(i as f64, (i * i) as f64 * 0.01, -1.0)).collect();
+        let x_true: Vec<DVec3> = (0..n)
+            .map(|i| DVec3::new(i as f64, (i * i) as f64 * 0.01, -1.0))
+            .collect();
         // b = A x
         let mut b = vec![DVec3::ZERO; n];
         for &(r, c, v) in &trip {
@@ -218,7 +243,11 @@ mod tests {
         let n = side * side;
         let build = |label: &dyn Fn(usize) -> usize| {
             let mut t: Vec<_> = (0..n).map(|i| (i, i, 5.0)).collect();
-            t.extend(pairs.iter().map(|&(a, b)| (label(a).min(label(b)), label(a).max(label(b)), -1.0)));
+            t.extend(
+                pairs
+                    .iter()
+                    .map(|&(a, b)| (label(a).min(label(b)), label(a).max(label(b)), -1.0)),
+            );
             upper_from_triplets(n, &t)
         };
         let natural = Cholesky::new(&build(&|i| i)).unwrap().nnz();
@@ -228,7 +257,10 @@ mod tests {
             new_of_old[old as usize] = new;
         }
         let amd = Cholesky::new(&build(&|i| new_of_old[i])).unwrap().nnz();
-        assert!(amd < natural * 3 / 4, "AMD fill {amd} should beat natural order {natural}");
+        assert!(
+            amd < natural * 3 / 4,
+            "AMD fill {amd} should beat natural order {natural}"
+        );
     }
 
     #[test]

@@ -43,7 +43,8 @@ impl FastSolver {
         let n = sys.len();
         let h2 = sys.params.time_step.powi(2);
         let s = sys.inertia_scale();
-        let mut triplets: Vec<(usize, usize, f64)> = Vec::with_capacity(n + 3 * sys.springs.a.len() + sys.anchors.a.len());
+        let mut triplets: Vec<(usize, usize, f64)> =
+            Vec::with_capacity(n + 3 * sys.springs.a.len() + sys.anchors.a.len());
         triplets.extend(sys.mass.iter().enumerate().map(|(i, m)| (i, i, s * m)));
         let sp = &sys.springs;
         for i in 0..sp.a.len() {
@@ -53,7 +54,8 @@ impl FastSolver {
             triplets.push((a.min(b), a.max(b), -w));
         }
         let an = &sys.anchors;
-        triplets.extend((0..an.a.len()).map(|i| (an.a[i] as usize, an.a[i] as usize, h2 * an.k[i])));
+        triplets
+            .extend((0..an.a.len()).map(|i| (an.a[i] as usize, an.a[i] as usize, h2 * an.k[i])));
         let factor = Cholesky::new(&upper_from_triplets(n, &triplets))?;
         Ok(FastSolver {
             hk: sp.k.iter().map(|k| h2 * k).collect(),
@@ -116,7 +118,12 @@ impl FastSolver {
     /// then h²∇g(x) = Q·x − rhs = last_rhs − rhs.
     fn relative_residual(&self) -> f64 {
         let h2 = self.sys.params.time_step.powi(2);
-        let diff: f64 = self.last_rhs.iter().zip(&self.rhs).map(|(a, b)| a.distance_squared(*b)).sum();
+        let diff: f64 = self
+            .last_rhs
+            .iter()
+            .zip(&self.rhs)
+            .map(|(a, b)| a.distance_squared(*b))
+            .sum();
         diff.sqrt() / h2 / self.sys.force_scale()
     }
 }
@@ -163,6 +170,10 @@ impl StepSolver for FastSolver {
         for ((v, x), x0) in v.iter_mut().zip(x.iter()).zip(&self.x0) {
             *v = (*x - *x0) / h;
         }
-        Ok(StepStats { iterations: self.iterations, residual, converged: true })
+        Ok(StepStats {
+            iterations: self.iterations,
+            residual,
+            converged: true,
+        })
     }
 }

@@ -89,7 +89,11 @@ impl BakeParams {
 
     /// The step constants for the solvers.
     pub fn step_params(&self) -> StepParams {
-        StepParams { time_step: self.time_step(), damping: self.damping, gravity: self.gravity }
+        StepParams {
+            time_step: self.time_step(),
+            damping: self.damping,
+            gravity: self.gravity,
+        }
     }
 }
 
@@ -106,7 +110,10 @@ pub struct FrameCache {
 impl FrameCache {
     /// An empty cache for `particles` particles.
     pub fn new(particles: usize) -> Self {
-        FrameCache { particles, positions: Vec::new() }
+        FrameCache {
+            particles,
+            positions: Vec::new(),
+        }
     }
 
     /// Appends a frame.
@@ -120,7 +127,10 @@ impl FrameCache {
 
     /// Number of recorded frames (the initial state included).
     pub fn frame_count(&self) -> usize {
-        self.positions.len().checked_div(self.particles).unwrap_or(0)
+        self.positions
+            .len()
+            .checked_div(self.particles)
+            .unwrap_or(0)
     }
 
     /// Number of particles per frame.
@@ -156,7 +166,9 @@ pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn St
     let sys = ReducedSystem::new(model, params.step_params())?;
     Ok(match params.solver {
         SolverKind::Fast => Box::new(FastSolver::new(sys, params.iterations)?),
-        SolverKind::Newton => Box::new(NewtonSolver::new(sys, params.tolerance, params.max_newton)?),
+        SolverKind::Newton => {
+            Box::new(NewtonSolver::new(sys, params.tolerance, params.max_newton)?)
+        }
     })
 }
 
@@ -182,7 +194,11 @@ pub fn simulate(
     let guard = DivergenceGuard::new(model, params);
     let mut frames = Vec::with_capacity(params.frames);
     for frame in 1..=params.frames {
-        let mut stats = StepStats { iterations: 0, residual: 0.0, converged: true };
+        let mut stats = StepStats {
+            iterations: 0,
+            residual: 0.0,
+            converged: true,
+        };
         for _ in 0..params.substeps {
             let s = solver.step(&mut x, &mut v).map_err(|e| match e {
                 // Solvers don't know frames: name the frame being computed.
@@ -199,7 +215,11 @@ pub fn simulate(
         frames.push(stats);
         progress(frame);
     }
-    Ok(Simulation { cache, frames, seconds: start.elapsed().as_secs_f64() })
+    Ok(Simulation {
+        cache,
+        frames,
+        seconds: start.elapsed().as_secs_f64(),
+    })
 }
 
 /// Detects a simulation that has blown up: non-finite positions, or particles farther from the
@@ -214,19 +234,28 @@ impl DivergenceGuard {
         let (lo, hi) = model.mesh.bounds();
         let duration = params.frames as f64 / params.fps;
         let fall = 0.5 * params.gravity.length() * duration * duration;
-        DivergenceGuard { centre: (lo + hi) * 0.5, radius: 100.0 * ((hi - lo).length() + 1.0) + 2.0 * fall }
+        DivergenceGuard {
+            centre: (lo + hi) * 0.5,
+            radius: 100.0 * ((hi - lo).length() + 1.0) + 2.0 * fall,
+        }
     }
 
     fn check(&self, frame: usize, x: &[DVec3], sys: &ReducedSystem) -> Result<()> {
         for (i, p) in x.iter().enumerate() {
             let particle = sys.particle_of[i];
             if !p.is_finite() {
-                return Err(Error::Diverged { frame, reason: format!("non-finite position at particle {particle}") });
+                return Err(Error::Diverged {
+                    frame,
+                    reason: format!("non-finite position at particle {particle}"),
+                });
             }
             if p.distance(self.centre) > self.radius {
                 return Err(Error::Diverged {
                     frame,
-                    reason: format!("particle {particle} flew {:.3e} m from the body's centre", p.distance(self.centre)),
+                    reason: format!(
+                        "particle {particle} flew {:.3e} m from the body's centre",
+                        p.distance(self.centre)
+                    ),
                 });
             }
         }

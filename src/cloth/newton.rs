@@ -24,7 +24,8 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
+    SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
@@ -167,9 +168,13 @@ impl NewtonSolver {
         drop(neighbours);
 
         let pattern = SymbolicSparseColMatRef::new_checked(dim, dim, &col_ptr, None, &row_idx);
-        let symbolic =
-            factorize_symbolic_cholesky(pattern, Side::Upper, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
-                .map_err(|e| Error::Factorisation(format!("symbolic analysis: {e:?}")))?;
+        let symbolic = factorize_symbolic_cholesky(
+            pattern,
+            Side::Upper,
+            SymmetricOrdering::Amd,
+            CholeskySymbolicParams::default(),
+        )
+        .map_err(|e| Error::Factorisation(format!("symbolic analysis: {e:?}")))?;
         let par = Par::Seq;
         let scratch = Scratch(MemBuffer::new(StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
@@ -220,7 +225,10 @@ impl NewtonSolver {
 
     /// True when the symbolic analysis chose a supernodal factor.
     pub fn is_supernodal(&self) -> bool {
-        matches!(self.symbolic.raw(), faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_))
+        matches!(
+            self.symbolic.raw(),
+            faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
+        )
     }
 
     /// Assembles the Hessian at `x` and factors it numerically, as one Newton iteration does
@@ -254,7 +262,12 @@ impl NewtonSolver {
         let values = &mut self.values[..];
         values.fill(0.0);
         let grad = &mut self.grad[..];
-        for (i, ((g, m), d)) in grad.iter_mut().zip(&self.sys.mass).zip(&self.diag).enumerate() {
+        for (i, ((g, m), d)) in grad
+            .iter_mut()
+            .zip(&self.sys.mass)
+            .zip(&self.diag)
+            .enumerate()
+        {
             let wm = w * m;
             *g = (x[i] - self.y[i]) * wm;
             values[d[0] as usize] = wm;
@@ -288,7 +301,8 @@ impl NewtonSolver {
 
     fn factorize(&mut self) -> Result<()> {
         let dim = self.dx.len();
-        let pattern = SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx);
+        let pattern =
+            SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx);
         let a = SparseColMatRef::new(pattern, &self.values);
         self.symbolic
             .factorize_numeric_llt(
@@ -301,7 +315,9 @@ impl NewtonSolver {
                 Default::default(),
             )
             .map(|_| ())
-            .map_err(|e| Error::Factorisation(format!("Newton Hessian is not positive definite ({e:?})")))
+            .map_err(|e| {
+                Error::Factorisation(format!("Newton Hessian is not positive definite ({e:?})"))
+            })
     }
 
     /// Overwrites `self.dx` with −H⁻¹∇g using the current factor.
@@ -318,7 +334,10 @@ impl NewtonSolver {
     fn non_finite(&self, what: &str, iteration: usize) -> Error {
         Error::Diverged {
             frame: 0,
-            reason: format!("non-finite {what} in Newton iteration {iteration} of time step {}", self.steps + 1),
+            reason: format!(
+                "non-finite {what} in Newton iteration {iteration} of time step {}",
+                self.steps + 1
+            ),
         }
     }
 }
@@ -394,14 +413,24 @@ impl StepSolver for NewtonSolver {
 
             // Backtracking line search on g along dx.
             let g0 = self.sys.objective(x, &self.y);
-            let slope: f64 = self.grad.iter().zip(self.dx.chunks_exact(3)).map(|(g, d)| g.dot(DVec3::from_slice(d))).sum();
+            let slope: f64 = self
+                .grad
+                .iter()
+                .zip(self.dx.chunks_exact(3))
+                .map(|(g, d)| g.dot(DVec3::from_slice(d)))
+                .sum();
             if !(g0.is_finite() && slope.is_finite()) {
                 return Err(self.non_finite("objective or direction", iterations));
             }
             let slack = ROUNDOFF * g0.abs();
             let mut alpha = 1.0;
             for _ in 0..MAX_HALVINGS {
-                for ((t, x), d) in self.trial.iter_mut().zip(x.iter()).zip(self.dx.chunks_exact(3)) {
+                for ((t, x), d) in self
+                    .trial
+                    .iter_mut()
+                    .zip(x.iter())
+                    .zip(self.dx.chunks_exact(3))
+                {
                     *t = *x + DVec3::from_slice(d) * alpha;
                 }
                 let g = self.sys.objective(&self.trial, &self.y);
@@ -416,7 +445,11 @@ impl StepSolver for NewtonSolver {
             *v = (*x - *x0) / h;
         }
         self.steps += 1;
-        Ok(StepStats { iterations, residual, converged })
+        Ok(StepStats {
+            iterations,
+            residual,
+            converged,
+        })
     }
 }
 
@@ -438,7 +471,11 @@ mod tests {
             pinned[p as usize] = true;
         }
         let model = ClothModel::new(lab.mesh, lab.springs, vec![1.0; count], pinned).unwrap();
-        let params = StepParams { time_step: 1.0 / 60.0, damping: 0.2, gravity: DVec3::new(0.0, -0.3, 0.0) };
+        let params = StepParams {
+            time_step: 1.0 / 60.0,
+            damping: 0.2,
+            gravity: DVec3::new(0.0, -0.3, 0.0),
+        };
         let sys = ReducedSystem::new(&model, params).unwrap();
         let x = sys.gather(model.positions());
         (sys, x)
@@ -459,14 +496,20 @@ mod tests {
     fn assembled_gradient_matches_the_system_gradient() {
         let (sys, x) = lab_system(6);
         let x = perturbed(&x);
-        let y: Vec<DVec3> = x.iter().map(|p| *p + DVec3::new(0.01, -0.02, 0.0)).collect();
+        let y: Vec<DVec3> = x
+            .iter()
+            .map(|p| *p + DVec3::new(0.01, -0.02, 0.0))
+            .collect();
         let mut want = vec![DVec3::ZERO; x.len()];
         sys.gradient(&x, &y, &mut want);
         let mut solver = NewtonSolver::new(sys, DEFAULT_TOLERANCE, DEFAULT_MAX_ITERATIONS).unwrap();
         solver.y.copy_from_slice(&y);
         solver.assemble(&x);
         for (got, want) in solver.grad.iter().zip(&want) {
-            assert!((*got - *want).length() < 1e-9 * (1.0 + want.length()), "{got} vs {want}");
+            assert!(
+                (*got - *want).length() < 1e-9 * (1.0 + want.length()),
+                "{got} vs {want}"
+            );
         }
     }
 
@@ -481,7 +524,8 @@ mod tests {
         let x: Vec<DVec3> = x.iter().map(|p| x[0] + (*p - x[0]) * 1.1).collect();
         let y = x.clone();
         let n = x.len();
-        let mut solver = NewtonSolver::new(sys.clone(), DEFAULT_TOLERANCE, DEFAULT_MAX_ITERATIONS).unwrap();
+        let mut solver =
+            NewtonSolver::new(sys.clone(), DEFAULT_TOLERANCE, DEFAULT_MAX_ITERATIONS).unwrap();
         let trip = solver.hessian_triplets(&x);
         let mut dense = vec![0.0; 9 * n * n];
         for &(r, c, v) in &trip {
@@ -502,7 +546,10 @@ mod tests {
             for row in 0..3 * n {
                 let fd = (gp[row / 3][row % 3] - gm[row / 3][row % 3]) / (2.0 * eps);
                 let h = dense[row * 3 * n + col];
-                assert!((fd - h).abs() < 1e-4 * (1.0 + h.abs()), "H[{row},{col}] = {h}, finite difference {fd}");
+                assert!(
+                    (fd - h).abs() < 1e-4 * (1.0 + h.abs()),
+                    "H[{row},{col}] = {h}, finite difference {fd}"
+                );
             }
         }
     }
@@ -523,7 +570,10 @@ mod tests {
         let mut solver = NewtonSolver::new(sys, DEFAULT_TOLERANCE, DEFAULT_MAX_ITERATIONS).unwrap();
         for _ in 0..5 {
             let stats = solver.step(&mut x, &mut v).unwrap();
-            assert!(stats.converged && stats.residual <= DEFAULT_TOLERANCE, "{stats:?}");
+            assert!(
+                stats.converged && stats.residual <= DEFAULT_TOLERANCE,
+                "{stats:?}"
+            );
             assert!(stats.iterations <= 10, "{stats:?}");
         }
     }
@@ -534,6 +584,9 @@ mod tests {
         let mut v = vec![DVec3::ZERO; x.len()];
         x[3].x = f64::NAN;
         let mut solver = NewtonSolver::new(sys, DEFAULT_TOLERANCE, DEFAULT_MAX_ITERATIONS).unwrap();
-        assert!(matches!(solver.step(&mut x, &mut v), Err(Error::Diverged { .. })));
+        assert!(matches!(
+            solver.step(&mut x, &mut v),
+            Err(Error::Diverged { .. })
+        ));
     }
 }

@@ -30,14 +30,18 @@ impl FromStr for PinSpec {
 
     fn from_str(s: &str) -> Result<Self> {
         let bad = |m: String| Error::option("--pin", format!("`{s}`: {m}"));
-        let (kind, rest) = s
-            .split_once(':')
-            .ok_or_else(|| bad("expected index:I,J,..., box:X0,Y0,Z0,X1,Y1,Z1 or group:NAME".into()))?;
+        let (kind, rest) = s.split_once(':').ok_or_else(|| {
+            bad("expected index:I,J,..., box:X0,Y0,Z0,X1,Y1,Z1 or group:NAME".into())
+        })?;
         match kind.trim() {
             "index" => {
                 let indices = rest
                     .split(',')
-                    .map(|w| w.trim().parse::<u32>().map_err(|_| bad(format!("`{}` is not a particle index", w.trim()))))
+                    .map(|w| {
+                        w.trim()
+                            .parse::<u32>()
+                            .map_err(|_| bad(format!("`{}` is not a particle index", w.trim())))
+                    })
                     .collect::<Result<Vec<u32>>>()?;
                 Ok(PinSpec::Index(indices))
             }
@@ -48,7 +52,9 @@ impl FromStr for PinSpec {
             }
             "group" if !rest.trim().is_empty() => Ok(PinSpec::Group(rest.trim().to_owned())),
             "group" => Err(bad("group name is empty".into())),
-            other => Err(bad(format!("unknown pin kind `{other}` (use index, box or group)"))),
+            other => Err(bad(format!(
+                "unknown pin kind `{other}` (use index, box or group)"
+            ))),
         }
     }
 }
@@ -56,7 +62,11 @@ impl FromStr for PinSpec {
 impl std::fmt::Display for PinSpec {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            PinSpec::Index(i) => write!(f, "index:{}", i.iter().map(u32::to_string).collect::<Vec<_>>().join(",")),
+            PinSpec::Index(i) => write!(
+                f,
+                "index:{}",
+                i.iter().map(u32::to_string).collect::<Vec<_>>().join(",")
+            ),
             PinSpec::Box(a, b) => write!(f, "box:{},{},{},{},{},{}", a.x, a.y, a.z, b.x, b.y, b.z),
             PinSpec::Group(g) => write!(f, "group:{g}"),
         }
@@ -99,7 +109,11 @@ impl PinSpec {
                     format!(
                         "`{self}`: {} has no group `{name}` (groups: {})",
                         mesh.name,
-                        if known.is_empty() { "none".into() } else { known.join(", ") }
+                        if known.is_empty() {
+                            "none".into()
+                        } else {
+                            known.join(", ")
+                        }
                     ),
                 )
             })?,
@@ -110,7 +124,11 @@ impl PinSpec {
             let (lo, hi) = mesh.bounds();
             return Err(Error::EmptyPin {
                 spec: self.to_string(),
-                hint: format!("; the mesh spans {:.4?} to {:.4?}", lo.to_array(), hi.to_array()),
+                hint: format!(
+                    "; the mesh spans {:.4?} to {:.4?}",
+                    lo.to_array(),
+                    hi.to_array()
+                ),
             });
         }
         Ok(out)
@@ -133,28 +151,70 @@ mod tests {
     use super::*;
 
     fn square() -> Mesh {
-        Mesh::from_triangles("sq".into(), vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y], vec![[0, 1, 2], [0, 2, 3]])
+        Mesh::from_triangles(
+            "sq".into(),
+            vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
+            vec![[0, 1, 2], [0, 2, 3]],
+        )
     }
 
     #[test]
     fn specs_parse_and_select() {
         let m = square();
-        assert_eq!("index:3,1,1".parse::<PinSpec>().unwrap().select(&m).unwrap(), vec![1, 3]);
-        assert_eq!("box:-1,0.5,-1,2,2,1".parse::<PinSpec>().unwrap().select(&m).unwrap(), vec![2, 3]);
+        assert_eq!(
+            "index:3,1,1"
+                .parse::<PinSpec>()
+                .unwrap()
+                .select(&m)
+                .unwrap(),
+            vec![1, 3]
+        );
+        assert_eq!(
+            "box:-1,0.5,-1,2,2,1"
+                .parse::<PinSpec>()
+                .unwrap()
+                .select(&m)
+                .unwrap(),
+            vec![2, 3]
+        );
     }
 
     #[test]
     fn bad_specs_are_clear_errors() {
-        for (spec, words) in [("corner", "expected index"), ("index:a", "not a particle index"), ("box:1,2,3", "6 comma-separated"), ("ring:1", "unknown pin kind"), ("group:", "empty")] {
+        for (spec, words) in [
+            ("corner", "expected index"),
+            ("index:a", "not a particle index"),
+            ("box:1,2,3", "6 comma-separated"),
+            ("ring:1", "unknown pin kind"),
+            ("group:", "empty"),
+        ] {
             let e = spec.parse::<PinSpec>().unwrap_err().to_string();
             assert!(e.contains("--pin") && e.contains(words), "{spec}: {e}");
         }
         let m = square();
-        let e = "index:7".parse::<PinSpec>().unwrap().select(&m).unwrap_err().to_string();
+        let e = "index:7"
+            .parse::<PinSpec>()
+            .unwrap()
+            .select(&m)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("out of range"), "{e}");
-        let e = "box:5,5,5,6,6,6".parse::<PinSpec>().unwrap().select(&m).unwrap_err().to_string();
-        assert!(e.contains("selects no particle") && e.contains("spans"), "{e}");
-        let e = "group:top".parse::<PinSpec>().unwrap().select(&m).unwrap_err().to_string();
+        let e = "box:5,5,5,6,6,6"
+            .parse::<PinSpec>()
+            .unwrap()
+            .select(&m)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("selects no particle") && e.contains("spans"),
+            "{e}"
+        );
+        let e = "group:top"
+            .parse::<PinSpec>()
+            .unwrap()
+            .select(&m)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no group"), "{e}");
     }
 }

@@ -51,10 +51,15 @@ pub fn lab_cloth(n: u32, stiffness: f64) -> LabCloth {
         }
     }
     let springs = grid_springs(&positions, n, stiffness);
-    let mut mesh = Mesh::from_triangles(format!("lab-cloth (resolution {n})"), positions, triangles);
+    let mut mesh =
+        Mesh::from_triangles(format!("lab-cloth (resolution {n})"), positions, triangles);
     for (k, v) in mesh.render_vertices.iter_mut().enumerate() {
         let (i, j) = (k as u32 / side, k as u32 % side);
         v.uv = Some([j as f32 / n as f32, i as f32 / n as f32]);
     }
-    LabCloth { mesh, springs, pins: vec![id(0, 0), id(0, n)] }
+    LabCloth {
+        mesh,
+        springs,
+        pins: vec![id(0, 0), id(0, n)],
+    }
 }

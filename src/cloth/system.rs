@@ -80,7 +80,9 @@ impl ReducedSystem {
     pub fn new(model: &ClothModel, params: StepParams) -> Result<Self> {
         let n = model.particle_count();
         let mut solver_of = vec![u32::MAX; n];
-        let free: Vec<u32> = (0..n as u32).filter(|&i| !model.pinned[i as usize]).collect();
+        let free: Vec<u32> = (0..n as u32)
+            .filter(|&i| !model.pinned[i as usize])
+            .collect();
         for (s, &p) in free.iter().enumerate() {
             solver_of[p as usize] = s as u32;
         }
@@ -118,8 +120,17 @@ impl ReducedSystem {
                 (false, false) => {}
             }
         }
-        let mass = particle_of.iter().map(|&p| model.mass[p as usize]).collect();
-        Ok(ReducedSystem { params, particle_of, mass, springs, anchors })
+        let mass = particle_of
+            .iter()
+            .map(|&p| model.mass[p as usize])
+            .collect();
+        Ok(ReducedSystem {
+            params,
+            particle_of,
+            mass,
+            springs,
+            anchors,
+        })
     }
 
     /// Number of unknown particles.
@@ -151,7 +162,11 @@ impl ReducedSystem {
 
     /// The inertial target y = x₀ + (h v₀ + h² g)/s.
     pub fn predict(&self, x0: &[DVec3], v0: &[DVec3], y: &mut [DVec3]) {
-        let StepParams { time_step: h, gravity, .. } = self.params;
+        let StepParams {
+            time_step: h,
+            gravity,
+            ..
+        } = self.params;
         let s = self.inertia_scale();
         for ((y, x), v) in y.iter_mut().zip(x0).zip(v0) {
             *y = *x + (*v * h + gravity * (h * h)) / s;
@@ -162,10 +177,17 @@ impl ReducedSystem {
     pub fn objective(&self, x: &[DVec3], y: &[DVec3]) -> f64 {
         let h = self.params.time_step;
         let w = self.inertia_scale() / (2.0 * h * h);
-        let inertia: f64 = x.iter().zip(y).zip(&self.mass).map(|((x, y), m)| w * m * x.distance_squared(*y)).sum();
+        let inertia: f64 = x
+            .iter()
+            .zip(y)
+            .zip(&self.mass)
+            .map(|((x, y), m)| w * m * x.distance_squared(*y))
+            .sum();
         let s = &self.springs;
         let spring: f64 = (0..s.a.len())
-            .map(|i| 0.5 * s.k[i] * (x[s.a[i] as usize].distance(x[s.b[i] as usize]) - s.rest[i]).powi(2))
+            .map(|i| {
+                0.5 * s.k[i] * (x[s.a[i] as usize].distance(x[s.b[i] as usize]) - s.rest[i]).powi(2)
+            })
             .sum();
         let an = &self.anchors;
         let anchor: f64 = (0..an.a.len())

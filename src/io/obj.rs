@@ -97,10 +97,16 @@ pub fn parse_obj(text: &str, path: &Path, options: &ObjOptions) -> Result<Mesh> 
             "f" => {
                 let mut corners = Vec::new();
                 for word in words {
-                    corners.push(parse_corner(word, positions.len(), uvs.len(), normal_count).map_err(&err)?);
+                    corners.push(
+                        parse_corner(word, positions.len(), uvs.len(), normal_count)
+                            .map_err(&err)?,
+                    );
                 }
                 if corners.len() < 3 {
-                    return Err(err(format!("a face needs at least 3 corners, found {}", corners.len())));
+                    return Err(err(format!(
+                        "a face needs at least 3 corners, found {}",
+                        corners.len()
+                    )));
                 }
                 let mut groups = current_groups.clone();
                 if let Some(o) = &current_object {
@@ -141,13 +147,20 @@ pub fn parse_obj(text: &str, path: &Path, options: &ObjOptions) -> Result<Mesh> 
                 format!(
                     "{}: no object or group named `{object}` with faces (known: {})",
                     path.display(),
-                    if known_names.is_empty() { "none".into() } else { known_names.join(", ") }
+                    if known_names.is_empty() {
+                        "none".into()
+                    } else {
+                        known_names.join(", ")
+                    }
                 ),
             ));
         }
     }
     if faces.is_empty() {
-        return Err(Error::invalid(path, "no faces: a cloth needs triangles or polygons (`f` lines)"));
+        return Err(Error::invalid(
+            path,
+            "no faces: a cloth needs triangles or polygons (`f` lines)",
+        ));
     }
     build_mesh(path, &positions, &uvs, &faces)
 }
@@ -174,7 +187,9 @@ fn build_mesh(path: &Path, positions: &[DVec3], uvs: &[[f32; 2]], faces: &[Face]
     }
     let unused = positions.len() - mesh.positions.len();
     if unused > 0 {
-        mesh.warnings.push(format!("{unused} positions are used by no face and were left out"));
+        mesh.warnings.push(format!(
+            "{unused} positions are used by no face and were left out"
+        ));
     }
 
     let mut render_index: HashMap<(u32, Option<u32>), u32> = HashMap::new();
@@ -202,7 +217,10 @@ fn build_mesh(path: &Path, positions: &[DVec3], uvs: &[[f32; 2]], faces: &[Face]
             mesh.render_triangles.push(tri.map(|c| c.1));
         }
         for g in &f.groups {
-            groups.entry(g.clone()).or_default().extend(corner_ids.iter().map(|c| c.0));
+            groups
+                .entry(g.clone())
+                .or_default()
+                .extend(corner_ids.iter().map(|c| c.0));
         }
     }
     for set in groups.values_mut() {
@@ -211,12 +229,21 @@ fn build_mesh(path: &Path, positions: &[DVec3], uvs: &[[f32; 2]], faces: &[Face]
     }
     mesh.groups = groups;
 
-    let dropped = drop_degenerate(&mesh.positions, &mut mesh.triangles, Some(&mut mesh.render_triangles));
+    let dropped = drop_degenerate(
+        &mesh.positions,
+        &mut mesh.triangles,
+        Some(&mut mesh.render_triangles),
+    );
     if dropped > 0 {
-        mesh.warnings.push(format!("{dropped} degenerate triangles (zero area or repeated corner) skipped"));
+        mesh.warnings.push(format!(
+            "{dropped} degenerate triangles (zero area or repeated corner) skipped"
+        ));
     }
     if mesh.triangles.is_empty() {
-        return Err(Error::invalid(path, "every face is degenerate (zero area): nothing to simulate"));
+        return Err(Error::invalid(
+            path,
+            "every face is degenerate (zero area): nothing to simulate",
+        ));
     }
     Ok(mesh)
 }
@@ -231,12 +258,23 @@ fn parse_floats<'a, const N: usize>(words: &mut impl Iterator<Item = &'a str>) -
 
 /// Parses one `f` corner (`v`, `v/vt`, `v//vn`, `v/vt/vn`; negative = relative) into zero-based
 /// (position, texture coordinate) indices.
-fn parse_corner(word: &str, n_pos: usize, n_uv: usize, n_normal: usize) -> Result<(u32, Option<u32>), String> {
+fn parse_corner(
+    word: &str,
+    n_pos: usize,
+    n_uv: usize,
+    n_normal: usize,
+) -> Result<(u32, Option<u32>), String> {
     let mut parts = word.split('/');
     let resolve = |s: &str, count: usize, what: &str| -> Result<u32, String> {
-        let i: i64 = s.parse().map_err(|_| format!("bad {what} index `{s}` in face corner `{word}`"))?;
+        let i: i64 = s
+            .parse()
+            .map_err(|_| format!("bad {what} index `{s}` in face corner `{word}`"))?;
         let zero_based = match i {
-            0 => return Err(format!("{what} index 0 in face corner `{word}` (OBJ indices start at 1)")),
+            0 => {
+                return Err(format!(
+                    "{what} index 0 in face corner `{word}` (OBJ indices start at 1)"
+                ))
+            }
             i if i > 0 => i - 1,
             i => count as i64 + i,
         };
@@ -271,7 +309,11 @@ mod tests {
         let m = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 9 9\nf 1/1 2/2 3/3 4/4\nf 1/5 3/3 2/2\n").unwrap();
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.triangles.len(), 3);
-        assert_eq!(m.render_vertices.len(), 5, "position 1 with two UVs is two render vertices");
+        assert_eq!(
+            m.render_vertices.len(),
+            5,
+            "position 1 with two UVs is two render vertices"
+        );
         assert!(m.has_uvs());
     }
 
@@ -285,13 +327,20 @@ mod tests {
 
     #[test]
     fn errors_name_the_line() {
-        let e = parse("v 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap_err().to_string();
+        let e = parse("v 0 0 0\nv 1 0 0\nf 1 2 3\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("t.obj:3") && e.contains("out of range"), "{e}");
         let e = parse("v 0 0 nan\n").unwrap_err().to_string();
         assert!(e.contains(":1") && e.contains("non-finite"), "{e}");
-        let e = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n").unwrap_err().to_string();
+        let e = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("index 0"), "{e}");
-        assert!(parse("v 0 0 0\n").unwrap_err().to_string().contains("no faces"));
+        assert!(parse("v 0 0 0\n")
+            .unwrap_err()
+            .to_string()
+            .contains("no faces"));
     }
 
     #[test]
