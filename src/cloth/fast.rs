@@ -7,7 +7,7 @@
 
 use glam::DVec3;
 
-use super::factor::{upper_from_triplets, Cholesky};
+use super::factor::{upper_from_triplets, Cholesky, Lanes4};
 use super::system::ReducedSystem;
 use super::{StepSolver, StepStats};
 use crate::error::Result;
@@ -28,6 +28,8 @@ pub struct FastSolver {
     rhs: Vec<DVec3>,
     /// The previous iteration's right-hand side (for the residual).
     last_rhs: Vec<DVec3>,
+    /// The global step's right-hand side and solution, padded for [`Cholesky::solve4`].
+    work: Vec<Lanes4>,
     y: Vec<DVec3>,
     x0: Vec<DVec3>,
     /// Relative residual after each iteration of the last step, when recording.
@@ -63,6 +65,7 @@ impl FastSolver {
             base: vec![DVec3::ZERO; n],
             rhs: vec![DVec3::ZERO; n],
             last_rhs: vec![DVec3::ZERO; n],
+            work: vec![Lanes4::default(); n],
             y: vec![DVec3::ZERO; n],
             x0: vec![DVec3::ZERO; n],
             history: None,
@@ -158,8 +161,13 @@ impl StepSolver for FastSolver {
                 }
             }
             std::mem::swap(&mut self.rhs, &mut self.last_rhs);
-            x.copy_from_slice(&self.last_rhs);
-            self.factor.solve3(x);
+            for (w, r) in self.work.iter_mut().zip(&self.last_rhs) {
+                *w = Lanes4::from_vec3(*r);
+            }
+            self.factor.solve4(&mut self.work);
+            for (x, w) in x.iter_mut().zip(&self.work) {
+                *x = w.xyz();
+            }
         }
         // One more local step measures how far the last global solution is from stationary.
         self.local_step(x);

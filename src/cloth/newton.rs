@@ -171,7 +171,7 @@ impl NewtonSolver {
         let symbolic = factorize_symbolic_cholesky(
             pattern,
             Side::Upper,
-            SymmetricOrdering::Amd,
+            SymmetricOrdering::Identity,
             CholeskySymbolicParams::default(),
         )
         .map_err(|e| Error::Factorisation(format!("symbolic analysis: {e:?}")))?;
