@@ -18,8 +18,10 @@ pub struct FastSolver {
     sys: ReducedSystem,
     factor: Cholesky,
     iterations: usize,
-    /// h²·k per free spring.
-    hk: Vec<f64>,
+    /// Both ends of each free spring (solver indices), packed for the local step.
+    ends: Vec<[u32; 2]>,
+    /// h²·k·l per free spring: the local step's d_s scaled into the right-hand side.
+    hkl: Vec<f64>,
     /// h²·k per anchor.
     hk_anchor: Vec<f64>,
     /// Constant right-hand side part s·M·y + Σ h²k·(pin position), refreshed per step.
@@ -60,7 +62,8 @@ impl FastSolver {
             .extend((0..an.a.len()).map(|i| (an.a[i] as usize, an.a[i] as usize, h2 * an.k[i])));
         let factor = Cholesky::new(&upper_from_triplets(n, &triplets))?;
         Ok(FastSolver {
-            hk: sp.k.iter().map(|k| h2 * k).collect(),
+            ends: sp.a.iter().zip(&sp.b).map(|(&a, &b)| [a, b]).collect(),
+            hkl: sp.k.iter().zip(&sp.rest).map(|(k, l)| h2 * k * l).collect(),
             hk_anchor: an.k.iter().map(|k| h2 * k).collect(),
             base: vec![DVec3::ZERO; n],
             rhs: vec![DVec3::ZERO; n],
@@ -94,14 +97,13 @@ impl FastSolver {
     /// Local step at `x` folded into the right-hand side: rhs = base + h²·J·d(x).
     fn local_step(&mut self, x: &[DVec3]) {
         self.rhs.copy_from_slice(&self.base);
-        let sp = &self.sys.springs;
         let rhs = &mut self.rhs[..];
-        for i in 0..sp.a.len() {
-            let (a, b) = (sp.a[i] as usize, sp.b[i] as usize);
+        for (&[a, b], &hkl) in self.ends.iter().zip(&self.hkl) {
+            let (a, b) = (a as usize, b as usize);
             let r = x[a] - x[b];
             let len = r.length();
             if len > 0.0 {
-                let d = r * (self.hk[i] * sp.rest[i] / len);
+                let d = r * (hkl / len);
                 rhs[a] += d;
                 rhs[b] -= d;
             }

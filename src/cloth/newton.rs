@@ -18,9 +18,19 @@
 //!
 //! The sparsity pattern never changes during a bake: the upper triangle is laid out once in
 //! compressed columns, every spring knows where its off-diagonal block lives in the value array,
-//! the symbolic factorisation (AMD ordering, faer's supernodal/simplicial choice) is computed once,
-//! and each iteration only overwrites values and refactors numerically. The Newton loop does not
-//! allocate.
+//! the symbolic factorisation (faer's supernodal/simplicial choice) is computed once, and each
+//! iteration only overwrites values and refactors numerically. The Newton loop does not allocate.
+//!
+//! Ordering: the free particles are already in a fill-reducing (AMD) order ([`ReducedSystem`]),
+//! and unknowns are interleaved per particle, so the 3n×3n matrix is factored in that block order
+//! (`SymmetricOrdering::Identity`) rather than re-ordered by AMD on the scalar graph: on the
+//! 100×100 lab grid the factor is 5 % smaller (6.98 M against 7.38 M entries), and no permutation
+//! is applied at each factorisation and solve.
+//!
+//! Convergence: quadratic near the solution while no spring is compressed there. A compressed
+//! spring's clamped block is not the exact second derivative, so on crumpling cloth Newton falls
+//! back to a linear rate (≈ 0.1–0.9 per iteration); on stiff, light cloth such as tableCloth
+//! (h²k/m ≈ 10⁵) it can then reach the iteration cap, which the step reports as not converged.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::linalg::cholesky::{
