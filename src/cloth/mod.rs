@@ -234,9 +234,11 @@ impl DivergenceGuard {
         let (lo, hi) = model.mesh.bounds();
         let duration = params.frames as f64 / params.fps;
         let fall = 0.5 * params.gravity.length() * duration * duration;
+        // Beyond 1e9 m nothing is a cloth any more, and f32 caches lose every digit.
+        let radius = (100.0 * ((hi - lo).length() + 1.0) + 2.0 * fall).min(1e9);
         DivergenceGuard {
             centre: (lo + hi) * 0.5,
-            radius: 100.0 * ((hi - lo).length() + 1.0) + 2.0 * fall,
+            radius,
         }
     }
 

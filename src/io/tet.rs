@@ -40,58 +40,32 @@ pub fn parse_tet(text: &str, path: &Path) -> Result<Mesh> {
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let (header_line, header) = lines
-        .next()
-        .ok_or_else(|| err(1, "empty file: expected a `tet N M` header".into()))?;
+    let (header_line, header) = lines.next().ok_or_else(|| err(1, "empty file: expected a `tet N M` header".into()))?;
     let words: Vec<&str> = header.split_whitespace().collect();
     let (n, m) = match words.as_slice() {
         ["tet", n, m] => match (n.parse::<usize>(), m.parse::<usize>()) {
             (Ok(n), Ok(m)) => (n, m),
-            _ => {
-                return Err(err(
-                    header_line,
-                    format!("bad header `{header}`: counts must be whole numbers"),
-                ))
-            }
+            _ => return Err(err(header_line, format!("bad header `{header}`: counts must be whole numbers"))),
         },
-        _ => {
-            return Err(err(
-                header_line,
-                format!("bad header `{header}`: expected `tet N M`"),
-            ))
-        }
+        _ => return Err(err(header_line, format!("bad header `{header}`: expected `tet N M`"))),
     };
     if n < 4 || m == 0 {
-        return Err(err(
-            header_line,
-            format!("header announces {n} points and {m} tetrahedra: nothing to simulate"),
-        ));
+        return Err(err(header_line, format!("header announces {n} points and {m} tetrahedra: nothing to simulate")));
     }
     let mut positions = Vec::with_capacity(n);
     let mut last_line = header_line;
     for k in 0..n {
         let (line, l) = lines.next().ok_or_else(|| {
-            err(
-                last_line,
-                format!("file ends after {k} of the {n} points the header announces"),
-            )
+            err(last_line, format!("file ends after {k} of the {n} points the header announces"))
         })?;
         last_line = line;
         let c: Vec<f64> = l
             .split_whitespace()
             .map(str::parse)
             .collect::<std::result::Result<_, _>>()
-            .map_err(|_| {
-                err(
-                    line,
-                    format!("point {k}: expected three numbers, found `{l}`"),
-                )
-            })?;
+            .map_err(|_| err(line, format!("point {k}: expected three numbers, found `{l}`")))?;
         if c.len() != 3 {
-            return Err(err(
-                line,
-                format!("point {k}: expected three numbers, found {}", c.len()),
-            ));
+            return Err(err(line, format!("point {k}: expected three numbers, found {}", c.len())));
         }
         if c.iter().any(|v| !v.is_finite()) {
             return Err(err(line, format!("point {k}: non-finite coordinate")));
@@ -101,36 +75,19 @@ pub fn parse_tet(text: &str, path: &Path) -> Result<Mesh> {
     let mut tets = Vec::with_capacity(m);
     for k in 0..m {
         let (line, l) = lines.next().ok_or_else(|| {
-            err(
-                last_line,
-                format!("file ends after {k} of the {m} tetrahedra the header announces"),
-            )
+            err(last_line, format!("file ends after {k} of the {m} tetrahedra the header announces"))
         })?;
         last_line = line;
         let idx: Vec<usize> = l
             .split_whitespace()
             .map(str::parse)
             .collect::<std::result::Result<_, _>>()
-            .map_err(|_| {
-                err(
-                    line,
-                    format!("tetrahedron {k}: expected four indices, found `{l}`"),
-                )
-            })?;
+            .map_err(|_| err(line, format!("tetrahedron {k}: expected four indices, found `{l}`")))?;
         if idx.len() != 4 {
-            return Err(err(
-                line,
-                format!(
-                    "tetrahedron {k}: expected four indices, found {}",
-                    idx.len()
-                ),
-            ));
+            return Err(err(line, format!("tetrahedron {k}: expected four indices, found {}", idx.len())));
         }
         if let Some(bad) = idx.iter().find(|&&i| i >= n) {
-            return Err(err(
-                line,
-                format!("tetrahedron {k}: index {bad} out of range (0..{n})"),
-            ));
+            return Err(err(line, format!("tetrahedron {k}: index {bad} out of range (0..{n})")));
         }
         tets.push([idx[0] as u32, idx[1] as u32, idx[2] as u32, idx[3] as u32]);
     }
@@ -145,29 +102,16 @@ pub fn parse_tet(text: &str, path: &Path) -> Result<Mesh> {
 fn boundary(positions: &[DVec3], tets: &[[u32; 4]]) -> Vec<[u32; 3]> {
     let mut count: HashMap<[u32; 3], (usize, [u32; 3])> = HashMap::new();
     for t in tets {
-        for (face, opposite) in [
-            ([t[0], t[1], t[2]], t[3]),
-            ([t[0], t[1], t[3]], t[2]),
-            ([t[0], t[2], t[3]], t[1]),
-            ([t[1], t[2], t[3]], t[0]),
-        ] {
+        for (face, opposite) in [([t[0], t[1], t[2]], t[3]), ([t[0], t[1], t[3]], t[2]), ([t[0], t[2], t[3]], t[1]), ([t[1], t[2], t[3]], t[0])] {
             let [a, b, c] = face.map(|i| positions[i as usize]);
             let d = positions[opposite as usize];
-            let outward = if (b - a).cross(c - a).dot(d - a) > 0.0 {
-                [face[0], face[2], face[1]]
-            } else {
-                face
-            };
+            let outward = if (b - a).cross(c - a).dot(d - a) > 0.0 { [face[0], face[2], face[1]] } else { face };
             let mut key = face;
             key.sort_unstable();
             count.entry(key).or_insert((0, outward)).0 += 1;
         }
     }
-    let mut faces: Vec<[u32; 3]> = count
-        .into_values()
-        .filter(|(n, _)| *n == 1)
-        .map(|(_, f)| f)
-        .collect();
+    let mut faces: Vec<[u32; 3]> = count.into_values().filter(|(n, _)| *n == 1).map(|(_, f)| f).collect();
     faces.sort_unstable(); // deterministic order
     faces
 }
@@ -178,37 +122,20 @@ mod tests {
 
     #[test]
     fn one_tet_has_four_outward_faces() {
-        let m = parse_tet(
-            "tet 4 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n0 1 2 3\n",
-            Path::new("a.tet"),
-        )
-        .unwrap();
+        let m = parse_tet("tet 4 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n0 1 2 3\n", Path::new("a.tet")).unwrap();
         assert_eq!(m.triangles.len(), 4);
         let centre = DVec3::splat(0.25);
         for t in &m.triangles {
             let [a, b, c] = t.map(|i| m.positions[i as usize]);
-            assert!(
-                (b - a).cross(c - a).dot(a - centre) > 0.0,
-                "face {t:?} points inwards"
-            );
+            assert!((b - a).cross(c - a).dot(a - centre) > 0.0, "face {t:?} points inwards");
         }
     }
 
     #[test]
     fn short_file_names_what_is_missing() {
-        let e = parse_tet("tet 4 1\n0 0 0\n1 0 0\n", Path::new("a.tet"))
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("a.tet:3") && e.contains("2 of the 4 points"),
-            "{e}"
-        );
-        let e = parse_tet(
-            "tet 4 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n0 1 2 9\n",
-            Path::new("a.tet"),
-        )
-        .unwrap_err()
-        .to_string();
+        let e = parse_tet("tet 4 1\n0 0 0\n1 0 0\n", Path::new("a.tet")).unwrap_err().to_string();
+        assert!(e.contains("a.tet:3") && e.contains("2 of the 4 points"), "{e}");
+        let e = parse_tet("tet 4 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n0 1 2 9\n", Path::new("a.tet")).unwrap_err().to_string();
         assert!(e.contains("out of range"), "{e}");
     }
 }
