@@ -79,6 +79,10 @@ pub struct ClothJob {
     pub solver: SolverKind,
     /// `--iterations K`: local/global iterations per step.
     pub iterations: usize,
+    /// `--tolerance`: Newton's stopping residual ‖∇g‖ / weight.
+    pub tolerance: f64,
+    /// `--max-newton`: Newton iterations per step at most.
+    pub max_newton: usize,
     /// `--stiffness` (N/m).
     pub stiffness: Option<f64>,
     /// `--bend-stiffness` (N/m).
@@ -126,6 +130,8 @@ impl ClothJob {
             substeps: 1,
             solver: SolverKind::Fast,
             iterations: defaults::ITERATIONS,
+            tolerance: crate::cloth::newton::DEFAULT_TOLERANCE,
+            max_newton: crate::cloth::newton::DEFAULT_MAX_ITERATIONS,
             stiffness: None,
             bend_stiffness: None,
             damping: None,
@@ -270,6 +276,9 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     if job.iterations == 0 {
         return Err(Error::option("--iterations", "0: must be at least 1"));
     }
+    if job.max_newton == 0 {
+        return Err(Error::option("--max-newton", "0: must be at least 1"));
+    }
     if job.mass.is_some() && job.density.is_some() {
         return Err(Error::option(
             "--mass",
@@ -385,6 +394,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         gravity,
         solver: job.solver,
         iterations: job.iterations,
+        tolerance: positive("--tolerance", job.tolerance)?,
+        max_newton: job.max_newton,
     };
     Ok(PreparedCloth {
         model,
@@ -595,6 +606,13 @@ fn report(
         output_bytes: written.bytes,
         cache,
         vat,
-        warnings: model.warnings.clone(),
+        warnings: {
+            let mut w = model.warnings.clone();
+            let capped = frames.iter().filter(|f| !f.converged).count();
+            if capped > 0 {
+                w.push(format!("{capped} frames stopped at the iteration cap before the tolerance (see unconverged_frames; raise --max-newton or --substeps)"));
+            }
+            w
+        },
     }
 }

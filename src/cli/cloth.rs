@@ -48,6 +48,12 @@ pub struct ClothArgs {
     /// Local/global iterations per step (fast solver).
     #[arg(long, default_value_t = 10, value_name = "K")]
     pub iterations: usize,
+    /// Newton stops when the residual ‖∇g‖ / weight falls below this.
+    #[arg(long, default_value_t = scenebake::cloth::newton::DEFAULT_TOLERANCE, value_name = "R")]
+    pub tolerance: f64,
+    /// Newton iterations per step at most; a step that hits the cap is flagged in the report.
+    #[arg(long, default_value_t = scenebake::cloth::newton::DEFAULT_MAX_ITERATIONS, value_name = "N")]
+    pub max_newton: usize,
     /// Spring stiffness in N/m [default: 1000; lab-cloth 100].
     #[arg(long, value_name = "K")]
     pub stiffness: Option<f64>,
@@ -140,6 +146,8 @@ pub enum ClothPreset {
 pub enum SolverArg {
     /// Local/global fast mass-spring (Liu et al. 2013), prefactored.
     Fast,
+    /// Implicit Euler solved exactly by Newton's method (sparse Hessian, line search).
+    Newton,
 }
 
 /// `--interpolation` values.
@@ -188,8 +196,11 @@ impl ClothArgs {
         job.substeps = self.substeps;
         job.solver = match self.solver {
             SolverArg::Fast => SolverKind::Fast,
+            SolverArg::Newton => SolverKind::Newton,
         };
         job.iterations = self.iterations;
+        job.tolerance = self.tolerance;
+        job.max_newton = self.max_newton;
         job.stiffness = self.stiffness;
         job.bend_stiffness = self.bend_stiffness;
         job.damping = self.damping;

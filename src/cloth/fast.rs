@@ -7,7 +7,7 @@
 
 use glam::DVec3;
 
-use super::factor::{upper_from_triplets, Cholesky};
+use super::factor::{upper_from_triplets, Cholesky, Lanes4};
 use super::system::ReducedSystem;
 use super::{StepSolver, StepStats};
 use crate::error::Result;
@@ -18,16 +18,20 @@ pub struct FastSolver {
     sys: ReducedSystem,
     factor: Cholesky,
     iterations: usize,
-    /// h²·k per free spring.
-    hk: Vec<f64>,
+    /// Both ends of each free spring (solver indices), packed for the local step.
+    ends: Vec<[u32; 2]>,
+    /// h²·k·l per free spring: the local step's d_s scaled into the right-hand side.
+    hkl: Vec<f64>,
     /// h²·k per anchor.
     hk_anchor: Vec<f64>,
     /// Constant right-hand side part s·M·y + Σ h²k·(pin position), refreshed per step.
-    base: Vec<DVec3>,
-    /// Right-hand side / solution buffer.
-    rhs: Vec<DVec3>,
-    /// The previous iteration's right-hand side (for the residual).
-    last_rhs: Vec<DVec3>,
+    base: Vec<Lanes4>,
+    /// The current iterate's positions.
+    pos: Vec<Lanes4>,
+    /// The global step's right-hand side, solved in place (then swapped into `pos`).
+    sol: Vec<Lanes4>,
+    /// The right-hand side that produced `pos` (kept when a residual will be measured).
+    last_rhs: Vec<Lanes4>,
     y: Vec<DVec3>,
     x0: Vec<DVec3>,
     /// Relative residual after each iteration of the last step, when recording.
@@ -58,11 +62,13 @@ impl FastSolver {
             .extend((0..an.a.len()).map(|i| (an.a[i] as usize, an.a[i] as usize, h2 * an.k[i])));
         let factor = Cholesky::new(&upper_from_triplets(n, &triplets))?;
         Ok(FastSolver {
-            hk: sp.k.iter().map(|k| h2 * k).collect(),
+            ends: sp.a.iter().zip(&sp.b).map(|(&a, &b)| [a, b]).collect(),
+            hkl: sp.k.iter().zip(&sp.rest).map(|(k, l)| h2 * k * l).collect(),
             hk_anchor: an.k.iter().map(|k| h2 * k).collect(),
-            base: vec![DVec3::ZERO; n],
-            rhs: vec![DVec3::ZERO; n],
-            last_rhs: vec![DVec3::ZERO; n],
+            base: vec![Lanes4::default(); n],
+            pos: vec![Lanes4::default(); n],
+            sol: vec![Lanes4::default(); n],
+            last_rhs: vec![Lanes4::default(); n],
             y: vec![DVec3::ZERO; n],
             x0: vec![DVec3::ZERO; n],
             history: None,
@@ -88,17 +94,29 @@ impl FastSolver {
         &self.factor
     }
 
-    /// Local step at `x` folded into the right-hand side: rhs = base + h²·J·d(x).
-    fn local_step(&mut self, x: &[DVec3]) {
-        self.rhs.copy_from_slice(&self.base);
-        let sp = &self.sys.springs;
-        let rhs = &mut self.rhs[..];
-        for i in 0..sp.a.len() {
-            let (a, b) = (sp.a[i] as usize, sp.b[i] as usize);
+    /// ‖∇g(x)‖ / force scale, where x solved Q·x = `last_rhs` and `sol` holds the local step at
+    /// x: then h²∇g(x) = Q·x − rhs = last_rhs − sol.
+    fn relative_residual(&self) -> f64 {
+        let h2 = self.sys.params.time_step.powi(2);
+        let diff: f64 = self
+            .last_rhs
+            .iter()
+            .zip(&self.sol)
+            .map(|(a, b)| (a.xyz() - b.xyz()).length_squared())
+            .sum();
+        diff.sqrt() / h2 / self.sys.force_scale()
+    }
+
+    /// Local step at `self.pos` folded into the right-hand side: sol = base + h²·J·d(pos).
+    fn local_step(&mut self) {
+        self.sol.copy_from_slice(&self.base);
+        let (x, rhs) = (&self.pos[..], &mut self.sol[..]);
+        for (&[a, b], &hkl) in self.ends.iter().zip(&self.hkl) {
+            let (a, b) = (a as usize, b as usize);
             let r = x[a] - x[b];
-            let len = r.length();
-            if len > 0.0 {
-                let d = r * (self.hk[i] * sp.rest[i] / len);
+            let len2 = r.0[0] * r.0[0] + r.0[1] * r.0[1] + r.0[2] * r.0[2];
+            if len2 > 0.0 {
+                let d = r * (hkl / len2.sqrt());
                 rhs[a] += d;
                 rhs[b] -= d;
             }
@@ -106,25 +124,12 @@ impl FastSolver {
         let an = &self.sys.anchors;
         for i in 0..an.a.len() {
             let a = an.a[i] as usize;
-            let r = x[a] - an.at[i];
+            let r = x[a].xyz() - an.at[i];
             let len = r.length();
             if len > 0.0 {
-                rhs[a] += r * (self.hk_anchor[i] * an.rest[i] / len);
+                rhs[a] += Lanes4::from_vec3(r * (self.hk_anchor[i] * an.rest[i] / len));
             }
         }
-    }
-
-    /// ‖∇g(x)‖ / force scale, where x solved Q·x = `last_rhs` and `rhs` holds the local step at x:
-    /// then h²∇g(x) = Q·x − rhs = last_rhs − rhs.
-    fn relative_residual(&self) -> f64 {
-        let h2 = self.sys.params.time_step.powi(2);
-        let diff: f64 = self
-            .last_rhs
-            .iter()
-            .zip(&self.rhs)
-            .map(|(a, b)| a.distance_squared(*b))
-            .sum();
-        diff.sqrt() / h2 / self.sys.force_scale()
     }
 }
 
@@ -139,33 +144,40 @@ impl StepSolver for FastSolver {
         self.x0.copy_from_slice(x);
         self.sys.predict(x, v, &mut self.y);
         for (b, (y, m)) in self.base.iter_mut().zip(self.y.iter().zip(&self.sys.mass)) {
-            *b = *y * (s * m);
+            *b = Lanes4::from_vec3(*y * (s * m));
         }
         let an = &self.sys.anchors;
         for i in 0..an.a.len() {
-            self.base[an.a[i] as usize] += an.at[i] * self.hk_anchor[i];
+            self.base[an.a[i] as usize] += Lanes4::from_vec3(an.at[i] * self.hk_anchor[i]);
         }
-        x.copy_from_slice(&self.y);
+        for (p, y) in self.pos.iter_mut().zip(&self.y) {
+            *p = Lanes4::from_vec3(*y);
+        }
         if let Some(h) = &mut self.history {
             h.clear();
         }
         for k in 0..self.iterations {
-            self.local_step(x);
+            self.local_step();
             if k > 0 && self.history.is_some() {
                 let r = self.relative_residual();
                 if let Some(h) = &mut self.history {
                     h.push(r);
                 }
             }
-            std::mem::swap(&mut self.rhs, &mut self.last_rhs);
-            x.copy_from_slice(&self.last_rhs);
-            self.factor.solve3(x);
+            if self.history.is_some() || k + 1 == self.iterations {
+                self.last_rhs.copy_from_slice(&self.sol);
+            }
+            self.factor.solve4(&mut self.sol);
+            std::mem::swap(&mut self.pos, &mut self.sol);
         }
         // One more local step measures how far the last global solution is from stationary.
-        self.local_step(x);
+        self.local_step();
         let residual = self.relative_residual();
         if let Some(h) = &mut self.history {
             h.push(residual);
+        }
+        for (x, p) in x.iter_mut().zip(&self.pos) {
+            *x = p.xyz();
         }
         for ((v, x), x0) in v.iter_mut().zip(x.iter()).zip(&self.x0) {
             *v = (*x - *x0) / h;

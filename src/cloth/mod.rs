@@ -6,6 +6,7 @@
 pub mod factor;
 pub mod fast;
 pub mod model;
+pub mod newton;
 pub mod pins;
 pub mod preset;
 pub mod springs;
@@ -17,6 +18,7 @@ use glam::{DVec3, Vec3};
 
 pub use fast::FastSolver;
 pub use model::ClothModel;
+pub use newton::NewtonSolver;
 pub use system::{ReducedSystem, StepParams};
 
 use crate::error::{Error, Result};
@@ -51,6 +53,8 @@ pub trait StepSolver {
 pub enum SolverKind {
     /// Local/global fast mass-spring with a prefactored matrix ([`FastSolver`]).
     Fast,
+    /// Newton's method with a sparse Cholesky per iteration ([`NewtonSolver`]).
+    Newton,
 }
 
 /// Settings of a bake.
@@ -70,6 +74,11 @@ pub struct BakeParams {
     pub solver: SolverKind,
     /// Local/global iterations per step (fast solver).
     pub iterations: usize,
+    /// Newton stops when ‖∇g‖ / force scale falls below this (dimensionless; default
+    /// [`newton::DEFAULT_TOLERANCE`] = 1e-8).
+    pub tolerance: f64,
+    /// Newton iterations per step at most (default [`newton::DEFAULT_MAX_ITERATIONS`] = 50).
+    pub max_newton: usize,
 }
 
 impl BakeParams {
@@ -157,6 +166,9 @@ pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn St
     let sys = ReducedSystem::new(model, params.step_params())?;
     Ok(match params.solver {
         SolverKind::Fast => Box::new(FastSolver::new(sys, params.iterations)?),
+        SolverKind::Newton => {
+            Box::new(NewtonSolver::new(sys, params.tolerance, params.max_newton)?)
+        }
     })
 }
 
@@ -188,7 +200,11 @@ pub fn simulate(
             converged: true,
         };
         for _ in 0..params.substeps {
-            let s = solver.step(&mut x, &mut v)?;
+            let s = solver.step(&mut x, &mut v).map_err(|e| match e {
+                // Solvers don't know frames: name the frame being computed.
+                Error::Diverged { reason, .. } => Error::Diverged { frame, reason },
+                e => e,
+            })?;
             stats.iterations += s.iterations;
             stats.residual = stats.residual.max(s.residual);
             stats.converged &= s.converged;
