@@ -108,6 +108,22 @@ proptest! {
     }
 
     #[test]
+    fn svg_reader_never_panics(parts in prop::collection::vec(prop_oneof![
+        Just("<g transform=\"translate(3,4) scale(2)\">".to_string()),
+        Just("</g>".to_string()),
+        Just("<defs>".to_string()),
+        Just("</defs>".to_string()),
+        (number(), number()).prop_map(|(a, b)| format!("<path d=\"M {a} {b} L 1 2 C 3 4 5 6 7 8 A 5 5 0 1 0 {b} {a} Z\"/>")),
+        "[MLHVCSQTAZmlhvcsqtaz0-9 .,eE+-]{0,24}".prop_map(|d| format!("<path d=\"{d}\"/>")),
+        "[a-z(),. 0-9-]{0,20}".prop_map(|t| format!("<line x1=\"0\" x2=\"1\" transform=\"{t}\"/>")),
+        (number(), number()).prop_map(|(a, b)| format!("<circle cx=\"{a}\" cy=\"{b}\" r=\"2\"/>")),
+        "[ -~]{0,12}",
+    ], 0..12)) {
+        // The property is that it answers (shapes or an error) without panicking.
+        let _ = scenebake::path::svg::parse_svg(&parts.concat());
+    }
+
+    #[test]
     fn pin_and_vector_parsers_never_panic(s in "[ -~]{0,30}") {
         let _ = s.parse::<PinSpec>();
         let _ = scenebake::spec::parse_vec3("--gravity", &s);

@@ -3,13 +3,15 @@
 //!
 //! A small built-in reader (no dependency): path data supports all commands (M L H V C S Q T A
 //! Z, absolute and relative); Béziers are flattened into 16 segments, arcs into segments of at
-//! most 10°. Not supported: `transform` attributes, `<use>`, CSS, text; such drawings are read
-//! without them.
+//! most 10°. `transform` attributes (matrix, translate, scale, rotate, skewX, skewY) apply to an
+//! element and everything nested in it, as Inkscape's layer groups need; shapes inside `defs`,
+//! `clipPath`, `mask`, `symbol`, `marker` and `pattern` are not drawn. Not supported: `<use>`,
+//! CSS, text.
 
 use std::f64::consts::{PI, TAU};
 use std::path::Path;
 
-use glam::DVec2;
+use glam::{DAffine2, DVec2};
 
 use crate::error::{Error, Result};
 
@@ -43,6 +45,9 @@ pub fn read_svg(path: &Path) -> Result<Vec<Polyline>> {
 /// A message naming the element or path command that could not be read.
 pub fn parse_svg(text: &str) -> std::result::Result<Vec<Polyline>, String> {
     let mut out = Vec::new();
+    // The transform of each open element, and how many open elements are never rendered.
+    let mut transforms = vec![DAffine2::IDENTITY];
+    let mut hidden: Vec<bool> = vec![false];
     let mut rest = text;
     while let Some(start) = rest.find('<') {
         rest = &rest[start + 1..];
@@ -53,10 +58,41 @@ pub fn parse_svg(text: &str) -> std::result::Result<Vec<Polyline>, String> {
         let end = rest.find('>').ok_or("unterminated tag")?;
         let tag = &rest[..end];
         rest = &rest[end + 1..];
+        if tag.starts_with('/') {
+            if transforms.len() > 1 {
+                transforms.pop();
+                hidden.pop();
+            }
+            continue;
+        }
+        if tag.starts_with('?') || tag.starts_with('!') {
+            continue; // <?xml ...?>, <!DOCTYPE ...>
+        }
         let name: String = tag
             .chars()
             .take_while(|c| c.is_ascii_alphanumeric() || *c == ':')
             .collect();
+        let parent = *transforms.last().unwrap_or(&DAffine2::IDENTITY);
+        let m = match attribute(tag, "transform") {
+            Some(t) => {
+                parent
+                    * parse_transform(&t).map_err(|e| format!("<{name}> transform=\"{t}\": {e}"))?
+            }
+            None => parent,
+        };
+        let is_hidden = *hidden.last().unwrap_or(&false)
+            || matches!(
+                name.as_str(),
+                "defs" | "clipPath" | "mask" | "symbol" | "marker" | "pattern"
+            );
+        if !tag.trim_end().ends_with('/') {
+            transforms.push(m);
+            hidden.push(is_hidden);
+        }
+        if is_hidden {
+            continue;
+        }
+        let first_new = out.len();
         let attrs = |key: &str| attribute(tag, key);
         let num = |key: &str| -> std::result::Result<f64, String> {
             attrs(key).map_or(Ok(0.0), |v| {
@@ -116,8 +152,51 @@ pub fn parse_svg(text: &str) -> std::result::Result<Vec<Polyline>, String> {
             }
             _ => {}
         }
+        for (points, _) in &mut out[first_new..] {
+            for p in points.iter_mut() {
+                *p = m.transform_point2(*p);
+            }
+        }
     }
     Ok(out)
+}
+
+/// Parses an SVG `transform` list (`matrix(a b c d e f)`, `translate`, `scale`, `rotate(a [cx
+/// cy])`, `skewX`, `skewY`; angles in degrees), composed left to right.
+fn parse_transform(text: &str) -> std::result::Result<DAffine2, String> {
+    let mut m = DAffine2::IDENTITY;
+    let mut rest = text.trim();
+    while !rest.is_empty() {
+        let open = rest.find('(').ok_or("expected `name(...)`")?;
+        let close = rest[open..].find(')').ok_or("missing `)`")? + open;
+        let name = rest[..open].trim().trim_start_matches(',').trim();
+        let a = numbers(&rest[open + 1..close])?;
+        let arg = |i: usize| a.get(i).copied();
+        let t = match (name, a.len()) {
+            ("matrix", 6) => DAffine2::from_cols_array(&[a[0], a[1], a[2], a[3], a[4], a[5]]),
+            ("translate", 1 | 2) => {
+                DAffine2::from_translation(DVec2::new(a[0], arg(1).unwrap_or(0.0)))
+            }
+            ("scale", 1 | 2) => DAffine2::from_scale(DVec2::new(a[0], arg(1).unwrap_or(a[0]))),
+            ("rotate", 1) => DAffine2::from_angle(a[0].to_radians()),
+            ("rotate", 3) => {
+                let c = DVec2::new(a[1], a[2]);
+                DAffine2::from_translation(c)
+                    * DAffine2::from_angle(a[0].to_radians())
+                    * DAffine2::from_translation(-c)
+            }
+            ("skewX", 1) => {
+                DAffine2::from_cols_array(&[1.0, 0.0, a[0].to_radians().tan(), 1.0, 0.0, 0.0])
+            }
+            ("skewY", 1) => {
+                DAffine2::from_cols_array(&[1.0, a[0].to_radians().tan(), 0.0, 1.0, 0.0, 0.0])
+            }
+            _ => return Err(format!("unsupported `{name}` with {} numbers", a.len())),
+        };
+        m *= t;
+        rest = rest[close + 1..].trim();
+    }
+    Ok(m)
 }
 
 fn attribute(tag: &str, key: &str) -> Option<String> {
@@ -446,6 +525,40 @@ mod tests {
             .0
             .iter()
             .all(|p| (p.distance(DVec2::splat(5.0)) - 2.0).abs() < 1e-9));
+    }
+
+    #[test]
+    fn transforms_nest_and_hidden_containers_are_skipped() {
+        let svg = r#"<?xml version="1.0"?>
+<svg xmlns="http://www.w3.org/2000/svg">
+  <defs><path d="M 0 0 L 100 100"/></defs>
+  <g transform="translate(10, 20)">
+    <g transform="scale(2)">
+      <line x1="0" y1="0" x2="1" y2="0"/>
+    </g>
+    <path transform="rotate(90)" d="M 1 0 L 2 0"/>
+  </g>
+  <line x1="5" y1="5" x2="6" y2="5" transform="matrix(1 0 0 1 -5 -5)"/>
+</svg>"#;
+        let shapes = parse_svg(svg).unwrap();
+        assert_eq!(shapes.len(), 3, "the <defs> path is not drawn");
+        let close = |a: DVec2, b: DVec2| (a - b).length() < 1e-9;
+        // translate(10,20)·scale(2): (0,0)→(10,20), (1,0)→(12,20).
+        assert!(
+            close(shapes[0].0[0], DVec2::new(10.0, 20.0))
+                && close(shapes[0].0[1], DVec2::new(12.0, 20.0))
+        );
+        // translate(10,20)·rotate(90): (1,0)→(10,21), (2,0)→(10,22); the scale ended with its </g>.
+        assert!(
+            close(shapes[1].0[0], DVec2::new(10.0, 21.0))
+                && close(shapes[1].0[1], DVec2::new(10.0, 22.0))
+        );
+        assert!(close(shapes[2].0[0], DVec2::ZERO) && close(shapes[2].0[1], DVec2::new(1.0, 0.0)));
+        assert!(
+            parse_svg(r#"<g transform="frobnicate(1)"><line x2="1"/></g>"#)
+                .unwrap_err()
+                .contains("frobnicate")
+        );
     }
 
     #[test]
