@@ -270,33 +270,30 @@ pub fn write_chain_gltf(
         tapered_box(a, c, w, w * 0.6, &mut pos, &mut nrm, &mut idx);
         jnt.extend(std::iter::repeat(i).take(pos.len() - before));
     }
-    let joints_acc = if n <= 256 {
-        let bytes: Vec<u8> = jnt.iter().flat_map(|&j| [j as u8, 0, 0, 0]).collect();
-        b.accessor(
-            &bytes,
-            jnt.len(),
-            json::accessor::Type::Vec4,
+    // Joint indices as u8 when they fit, else u16 (both valid for JOINTS_0).
+    let (bytes, component): (Vec<u8>, _) = if n <= 256 {
+        (
+            jnt.iter().flat_map(|&j| [j as u8, 0, 0, 0]).collect(),
             json::accessor::ComponentType::U8,
-            array,
-            None,
-            false,
         )
     } else {
-        let bytes: Vec<u8> = jnt
-            .iter()
-            .flat_map(|&j| [j as u16, 0, 0, 0])
-            .flat_map(u16::to_le_bytes)
-            .collect();
-        b.accessor(
-            &bytes,
-            jnt.len(),
-            json::accessor::Type::Vec4,
+        (
+            jnt.iter()
+                .flat_map(|&j| [j as u16, 0, 0, 0])
+                .flat_map(u16::to_le_bytes)
+                .collect(),
             json::accessor::ComponentType::U16,
-            array,
-            None,
-            false,
         )
     };
+    let joints_acc = b.accessor(
+        &bytes,
+        jnt.len(),
+        json::accessor::Type::Vec4,
+        component,
+        array,
+        None,
+        false,
+    );
     let weights: Vec<[f32; 4]> = vec![[1.0, 0.0, 0.0, 0.0]; jnt.len()];
     let mut attrs = BTreeMap::new();
     attrs.insert(

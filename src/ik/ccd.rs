@@ -8,7 +8,7 @@
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
-use super::solver::{begin, finish, too_close, Begin, IkSolver, SolveReport, SolverConfig};
+use super::solver::{begin, end, Begin, IkSolver, SolveReport, SolverConfig};
 use crate::error::Result;
 
 /// The CCD solver.
@@ -37,11 +37,7 @@ impl IkSolver for Ccd {
                 }
             }
         }
-        let inside = too_close(chain, pose, target, cfg);
-        Ok(SolveReport {
-            unreachable: inside,
-            ..finish(chain, pose, start.as_ref(), target, iterations, cfg)
-        })
+        Ok(end(chain, pose, start.as_ref(), target, iterations, cfg))
     }
 
     fn name(&self) -> &'static str {

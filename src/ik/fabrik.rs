@@ -11,9 +11,7 @@
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
-use super::solver::{
-    aim_at_positions, begin, finish, too_close, Begin, IkSolver, SolveReport, SolverConfig,
-};
+use super::solver::{aim_at_positions, begin, end, Begin, IkSolver, SolveReport, SolverConfig};
 use crate::error::Result;
 
 /// The FABRIK solver.
@@ -59,11 +57,7 @@ impl IkSolver for Fabrik {
             fabrik_pass(&mut p, &d, target);
             aim_at_positions(chain, pose, &p);
         }
-        let inside = too_close(chain, pose, target, cfg);
-        Ok(SolveReport {
-            unreachable: inside,
-            ..finish(chain, pose, start.as_ref(), target, iterations, cfg)
-        })
+        Ok(end(chain, pose, start.as_ref(), target, iterations, cfg))
     }
 
     fn name(&self) -> &'static str {

@@ -189,6 +189,23 @@ pub(crate) fn begin(
     Ok(Begin::Iterate { start })
 }
 
+/// The common end of an iterated solve: the final report, with targets too close to the root
+/// to be reached counted as unreachable.
+pub(crate) fn end(
+    chain: &Chain,
+    pose: &mut Pose,
+    start: Option<&Pose>,
+    target: DVec3,
+    iterations: usize,
+    cfg: &SolverConfig,
+) -> SolveReport {
+    let inside = too_close(chain, pose, target, cfg);
+    SolveReport {
+        unreachable: inside,
+        ..finish(chain, pose, start, target, iterations, cfg)
+    }
+}
+
 /// Applies the optional rotation limit relative to `start` and computes the final report.
 pub(crate) fn finish(
     chain: &Chain,
