@@ -83,7 +83,10 @@ fn unreadable_inputs_name_the_file_and_the_problem() {
         // Found by fuzzing: the gltf crate's validator panicked on this one.
         (f("position_accessor_out_of_range.gltf"), vec!["position_accessor_out_of_range.gltf", "meshes[0].primitives[0].attributes.POSITION refers to accessor 0, but the file has 0 accessors"]),
         // Found by fuzzing: an image with a bufferView but no mimeType panicked the pre-check.
-        (f("image_view_without_mime.gltf"), vec!["image_view_without_mime.gltf", "invalid glTF"]),
+        (f("image_view_without_mime.gltf"), vec!["image_view_without_mime.gltf", "images[0] has a bufferView but no mimeType"]),
+        // Found by a longer fuzzing run: this one passes the gltf crate's validation, then its
+        // image loader unwrapped the missing mimeType.
+        (f("image_view_without_mime_valid_view.gltf"), vec!["image_view_without_mime_valid_view.gltf", "images[0] has a bufferView but no mimeType"]),
         (f("short.tet"), vec!["short.tet:4", "3 of the 10 points"]),
         (
             f("tet_bad_index.tet"),

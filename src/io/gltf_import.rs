@@ -1,9 +1,11 @@
 //! The one door through which every glTF input is loaded.
 //!
 //! It checks, before the `gltf` crate's own validation runs, for what that validation cannot
-//! report itself: missing external files (it says only "not found") and a POSITION attribute
-//! naming an accessor that does not exist (its validator indexes the accessor list unchecked and
-//! panics, found by fuzzing: `tests/fixtures/position_accessor_out_of_range.gltf`).
+//! report itself: missing external files (it says only "not found"), a POSITION attribute naming
+//! an accessor that does not exist (its validator indexes the accessor list unchecked and panics),
+//! and an image without the `mimeType` or `uri` its source needs (validation lets it through and
+//! the image loader unwraps it). Both panics were found by fuzzing; their inputs are kept in
+//! `tests/fixtures/`.
 
 use std::path::Path;
 
@@ -25,6 +27,7 @@ pub fn import_gltf(path: &Path) -> Result<Imported> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if let Ok(unchecked) = gltf::Gltf::from_slice_without_validation(&bytes) {
         check_position_accessors(path, &unchecked)?;
+        check_image_sources(path, &unchecked)?;
         check_external_files(path, &unchecked)?;
     }
     let base = path.parent().unwrap_or(Path::new(""));
@@ -64,6 +67,18 @@ fn check_position_accessors(path: &Path, gltf: &gltf::Gltf) -> Result<()> {
                 }
             }
         }
+    }
+    Ok(())
+}
+
+fn check_image_sources(path: &Path, gltf: &gltf::Gltf) -> Result<()> {
+    for (i, image) in gltf.document.as_json().images.iter().enumerate() {
+        let problem = match (&image.buffer_view, &image.mime_type, &image.uri) {
+            (Some(_), None, _) => "has a bufferView but no mimeType (glTF 2.0 requires one)",
+            (None, _, None) => "has neither a uri nor a bufferView",
+            _ => continue,
+        };
+        return Err(Error::invalid(path, format!("images[{i}] {problem}")));
     }
     Ok(())
 }
