@@ -2,6 +2,7 @@
 //! (4-byte aligned), POSITION-style min/max computed from the exact `f32` data written, and one
 //! writer for both `.glb` and `.gltf` + `.bin`.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
@@ -399,6 +400,62 @@ impl GltfBuilder {
             files
         };
         Ok(files)
+    }
+}
+
+/// An animation channel: sampler `sampler` (its index within the animation) drives `path` of
+/// `node`.
+pub fn channel(
+    sampler: usize,
+    node: json::Index<json::Node>,
+    path: json::animation::Property,
+) -> json::animation::Channel {
+    json::animation::Channel {
+        sampler: json::Index::new(sampler as u32),
+        target: json::animation::Target {
+            node,
+            path: Valid(path),
+            extensions: None,
+            extras: Default::default(),
+        },
+        extensions: None,
+        extras: Default::default(),
+    }
+}
+
+/// An animation sampler from key times `input` to values `output`.
+pub fn sampler(
+    input: json::Index<json::Accessor>,
+    output: json::Index<json::Accessor>,
+    interpolation: json::animation::Interpolation,
+) -> json::animation::Sampler {
+    json::animation::Sampler {
+        input,
+        output,
+        interpolation: Valid(interpolation),
+        extensions: None,
+        extras: Default::default(),
+    }
+}
+
+/// A primitive without morph targets (add them with struct update syntax).
+pub fn primitive(
+    attributes: BTreeMap<
+        json::validation::Checked<json::mesh::Semantic>,
+        json::Index<json::Accessor>,
+    >,
+    indices: Option<json::Index<json::Accessor>>,
+    material: json::Index<json::Material>,
+    mode: json::mesh::Mode,
+) -> json::mesh::Primitive {
+    json::mesh::Primitive {
+        attributes,
+        indices,
+        material: Some(material),
+        mode: Valid(mode),
+        targets: None,
+        extensions: None,
+        extras: Default::default(),
     }
 }
 

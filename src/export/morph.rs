@@ -20,7 +20,7 @@ use super::compact::{
     delta_accessor, select_keyframes, DeltaEncoding, KeyframeSelection, SparseMode,
 };
 use super::frames::RenderFrames;
-use super::gltf_doc::{GltfBuilder, Written};
+use super::gltf_doc::{channel, primitive, sampler, GltfBuilder, Written};
 use crate::cloth::FrameCache;
 use crate::error::{Error, Result};
 use crate::mesh::{vertex_normals, Mesh};
@@ -202,13 +202,13 @@ pub fn encode_morph_gltf(
     let gmesh = b.root.push(json::Mesh {
         name: Some(options.name.clone()),
         primitives: vec![json::mesh::Primitive {
-            attributes,
-            indices: Some(indices),
-            material: Some(material),
-            mode: Valid(json::mesh::Mode::Triangles),
             targets: Some(targets),
-            extensions: None,
-            extras: Default::default(),
+            ..primitive(
+                attributes,
+                Some(indices),
+                material,
+                json::mesh::Mode::Triangles,
+            )
         }],
         weights: Some(vec![0.0; names.len()]),
         extensions: None,
@@ -373,24 +373,12 @@ fn weights_animation(
     };
     b.root.push(json::Animation {
         name: Some(options.name.clone()),
-        channels: vec![json::animation::Channel {
-            sampler: json::Index::new(0),
-            target: json::animation::Target {
-                node,
-                path: Valid(json::animation::Property::MorphTargetWeights),
-                extensions: None,
-                extras: Default::default(),
-            },
-            extensions: None,
-            extras: Default::default(),
-        }],
-        samplers: vec![json::animation::Sampler {
-            input,
-            output,
-            interpolation: Valid(interpolation),
-            extensions: None,
-            extras: Default::default(),
-        }],
+        channels: vec![channel(
+            0,
+            node,
+            json::animation::Property::MorphTargetWeights,
+        )],
+        samplers: vec![sampler(input, output, interpolation)],
         extensions: None,
         extras: Default::default(),
     });

@@ -17,7 +17,7 @@ use glam::{DMat4, DQuat, DVec3, Vec3};
 use gltf_json as json;
 use json::validation::Checked::Valid;
 
-use super::gltf_doc::{GltfBuilder, Written};
+use super::gltf_doc::{channel, primitive, sampler, GltfBuilder, Written};
 use crate::error::Result;
 use crate::ik::chain::{Chain, Pose};
 use crate::ik::rig::RigDocument;
@@ -94,38 +94,6 @@ fn rotation_channels(
     (channels, samplers)
 }
 
-fn channel(
-    sampler: usize,
-    node: json::Index<json::Node>,
-    path: json::animation::Property,
-) -> json::animation::Channel {
-    json::animation::Channel {
-        sampler: json::Index::new(sampler as u32),
-        target: json::animation::Target {
-            node,
-            path: Valid(path),
-            extensions: None,
-            extras: Default::default(),
-        },
-        extensions: None,
-        extras: Default::default(),
-    }
-}
-
-fn sampler(
-    input: json::Index<json::Accessor>,
-    output: json::Index<json::Accessor>,
-    interpolation: json::animation::Interpolation,
-) -> json::animation::Sampler {
-    json::animation::Sampler {
-        input,
-        output,
-        interpolation: Valid(interpolation),
-        extensions: None,
-        extras: Default::default(),
-    }
-}
-
 fn material(
     b: &mut GltfBuilder,
     name: &str,
@@ -142,26 +110,6 @@ fn material(
         },
         ..Default::default()
     })
-}
-
-fn primitive(
-    attributes: BTreeMap<
-        json::validation::Checked<json::mesh::Semantic>,
-        json::Index<json::Accessor>,
-    >,
-    indices: Option<json::Index<json::Accessor>>,
-    material: json::Index<json::Material>,
-    mode: json::mesh::Mode,
-) -> json::mesh::Primitive {
-    json::mesh::Primitive {
-        attributes,
-        indices,
-        material: Some(material),
-        mode: Valid(mode),
-        targets: None,
-        extensions: None,
-        extras: Default::default(),
-    }
 }
 
 fn mesh(
