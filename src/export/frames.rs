@@ -1,11 +1,10 @@
 //! Render-vertex frames: the particle cache mapped onto the render surface once, shared by every
 //! writer that needs it (morph targets, vertex-animation textures, keyframe selection).
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
-use super::morph::render_frame;
 use crate::cloth::FrameCache;
-use crate::mesh::Mesh;
+use crate::mesh::{vertex_normals, Mesh};
 
 /// Positions and normals of every render vertex at every frame 0..=N.
 ///
@@ -71,5 +70,31 @@ impl RenderFrames {
     /// When `k >= frame_count()`.
     pub fn normals(&self, k: usize) -> &[Vec3] {
         &self.normals[k * self.vertices..(k + 1) * self.vertices]
+    }
+}
+
+/// Render-vertex positions and normals of one frame.
+pub struct RenderFrame {
+    /// Position per render vertex, m.
+    pub positions: Vec<Vec3>,
+    /// Unit normal per render vertex.
+    pub normals: Vec<Vec3>,
+}
+
+/// Maps particle positions to render vertices, with smooth normals from the surface triangles.
+pub fn render_frame(mesh: &Mesh, particles: &[Vec3], scratch: &mut Vec<DVec3>) -> RenderFrame {
+    let p64: Vec<DVec3> = particles.iter().map(|p| p.as_dvec3()).collect();
+    vertex_normals(&p64, &mesh.triangles, scratch);
+    RenderFrame {
+        positions: mesh
+            .render_vertices
+            .iter()
+            .map(|v| particles[v.particle as usize])
+            .collect(),
+        normals: mesh
+            .render_vertices
+            .iter()
+            .map(|v| scratch[v.particle as usize].as_vec3())
+            .collect(),
     }
 }

@@ -12,7 +12,7 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use gltf_json as json;
 use json::validation::Checked::Valid;
 
@@ -23,7 +23,7 @@ use super::frames::RenderFrames;
 use super::gltf_doc::{channel, primitive, sampler, GltfBuilder, Written};
 use crate::cloth::FrameCache;
 use crate::error::{Error, Result};
-use crate::mesh::{vertex_normals, Mesh};
+use crate::mesh::Mesh;
 
 /// How weights are interpolated between frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -95,32 +95,6 @@ pub struct EncodedMorph {
     pub files: Vec<(PathBuf, Vec<u8>)>,
     /// What the cache holds.
     pub stats: CacheStats,
-}
-
-/// Render-vertex positions and normals of one frame.
-pub struct RenderFrame {
-    /// Position per render vertex, m.
-    pub positions: Vec<Vec3>,
-    /// Unit normal per render vertex.
-    pub normals: Vec<Vec3>,
-}
-
-/// Maps particle positions to render vertices, with smooth normals from the surface triangles.
-pub fn render_frame(mesh: &Mesh, particles: &[Vec3], scratch: &mut Vec<DVec3>) -> RenderFrame {
-    let p64: Vec<DVec3> = particles.iter().map(|p| p.as_dvec3()).collect();
-    vertex_normals(&p64, &mesh.triangles, scratch);
-    RenderFrame {
-        positions: mesh
-            .render_vertices
-            .iter()
-            .map(|v| particles[v.particle as usize])
-            .collect(),
-        normals: mesh
-            .render_vertices
-            .iter()
-            .map(|v| scratch[v.particle as usize].as_vec3())
-            .collect(),
-    }
 }
 
 /// Writes `cache` (frames 0..=N of `mesh`'s particles) as a morph-target glTF at `path`
