@@ -82,15 +82,6 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
 /// Bakes one cloth job with a progress bar; writes its report when asked.
 pub fn run_cloth(args: &cloth::ClothArgs, label: &str, quiet: bool) -> anyhow::Result<Outcome> {
     let job = args.job();
-    let mut outputs: Vec<std::path::PathBuf> = vec![job.output.clone()];
-    outputs.extend(args.report.clone());
-    if let Some(vat) = &job.vat {
-        // A bad path is reported by the bake itself.
-        if let Ok((normals, json)) = scenebake::export::vat::vat_paths(vat) {
-            outputs.extend([vat.clone(), normals, json]);
-        }
-    }
-    interrupt::register_outputs(&outputs.iter().map(|p| p.as_path()).collect::<Vec<_>>());
     let frames = job
         .frames
         .unwrap_or(scenebake::bake::cloth::defaults::FRAMES) as u64;
@@ -120,7 +111,6 @@ pub fn run_cloth(args: &cloth::ClothArgs, label: &str, quiet: bool) -> anyhow::R
 /// Bakes one IK job with a progress bar (the library writes its report when asked).
 pub fn run_ik(args: &ik::IkArgs, label: &str, quiet: bool) -> anyhow::Result<Outcome> {
     let job = args.job()?;
-    interrupt::register_outputs(&[&job.output, job.report.as_deref().unwrap_or(&job.output)]);
     let bar = progress::bar(label, 1, quiet);
     let start = std::time::Instant::now();
     let report = scenebake::ik::bake::bake_ik(&job, &mut |done, total| {

@@ -1,9 +1,12 @@
 //! Writing outputs so that a failed or interrupted run never leaves a partial file nor destroys an
 //! earlier export: each file goes to a temporary in its target folder and is renamed into place
-//! only when every file of the set has been written completely.
+//! only when every file of the set has been written completely. The temporaries being written
+//! are listed process-wide, so that an interrupt handler can remove them
+//! ([`remove_live_temporaries`]) before the process exits without running destructors.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use crate::error::{Error, Result};
 
@@ -13,6 +16,7 @@ use crate::error::{Error, Result};
 /// # Errors
 /// [`Error::Io`] naming the file that could not be written.
 pub fn write_all_atomically(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    let mut live = LiveTemporaries(Vec::with_capacity(files.len()));
     let mut staged = Vec::with_capacity(files.len());
     for (path, bytes) in files {
         let dir = parent_dir(path);
@@ -34,6 +38,7 @@ pub fn write_all_atomically(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
         #[cfg(unix)]
         builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
         let mut tmp = builder.tempfile_in(&dir).map_err(|e| Error::io(path, e))?;
+        live.add(tmp.path());
         tmp.write_all(bytes)
             .and_then(|_| tmp.as_file().sync_data())
             .map_err(|e| Error::io(path, e))?;
@@ -43,6 +48,39 @@ pub fn write_all_atomically(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
         tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
     }
     Ok(())
+}
+
+/// Temporaries currently being written by this process.
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes every temporary this process is writing right now. For an interrupt handler that is
+/// about to exit: the targets themselves are never touched (they are only ever renamed onto).
+pub fn remove_live_temporaries() {
+    if let Ok(live) = LIVE.lock() {
+        for path in live.iter() {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+/// The temporaries of one write, listed in [`LIVE`] until the write ends either way.
+struct LiveTemporaries(Vec<PathBuf>);
+
+impl LiveTemporaries {
+    fn add(&mut self, path: &Path) {
+        self.0.push(path.to_path_buf());
+        if let Ok(mut live) = LIVE.lock() {
+            live.push(path.to_path_buf());
+        }
+    }
+}
+
+impl Drop for LiveTemporaries {
+    fn drop(&mut self) {
+        if let Ok(mut live) = LIVE.lock() {
+            live.retain(|p| !self.0.contains(p));
+        }
+    }
 }
 
 /// Writes one file atomically.
