@@ -18,6 +18,8 @@ fn params(solver: SolverKind, damping: f64, gravity: DVec3) -> BakeParams {
         iterations: 200,
         tolerance: 1e-12,
         max_newton: newton::DEFAULT_MAX_ITERATIONS,
+        colliders: Default::default(),
+        wind: None,
     }
 }
 

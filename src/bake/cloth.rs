@@ -8,10 +8,14 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+use crate::cloth::collide::{
+    Collider, ColliderSpec, Colliders, DEFAULT_FRICTION, DEFAULT_THICKNESS_FRACTION,
+};
 use crate::cloth::model::{masses_from_area, masses_from_volume};
 use crate::cloth::pins::{pinned_flags, PinSpec};
 use crate::cloth::preset::{self, lab_cloth};
 use crate::cloth::springs::{surface_springs, volume_springs, SpringKind, SpringSet};
+use crate::cloth::wind::{self, Wind};
 use crate::cloth::{make_solver, simulate, BakeParams, ClothModel, SolverKind, StepStats};
 use crate::error::{Error, Result};
 use crate::export::morph::{check_cache, encode_morph_gltf};
@@ -115,6 +119,23 @@ pub struct ClothJob {
     pub keyframe_tolerance: Option<f64>,
     /// `--sparse`: sparse morph-target accessors where smaller (`auto`) or never (`off`).
     pub sparse: SparseMode,
+    /// `--collider SPEC` (repeatable); mesh paths as given (relative to the working directory).
+    pub colliders: Vec<ColliderSpec>,
+    /// `--thickness` (m): how far particles stay from colliders; default a quarter of the mean
+    /// edge length.
+    pub thickness: Option<f64>,
+    /// `--friction`: Coulomb coefficient against colliders.
+    pub friction: f64,
+    /// `--wind X,Y,Z` (m/s).
+    pub wind: Option<DVec3>,
+    /// `--drag`: drag coefficient (turns aerodynamics on even without wind).
+    pub drag: Option<f64>,
+    /// `--lift`: lift coefficient (turns aerodynamics on even without wind).
+    pub lift: Option<f64>,
+    /// `--turbulence`: gust strength relative to the wind speed.
+    pub turbulence: f64,
+    /// `--seed`: the gusts' random seed.
+    pub seed: u64,
 }
 
 impl ClothJob {
@@ -147,6 +168,14 @@ impl ClothJob {
             vat_max_width: DEFAULT_MAX_WIDTH,
             keyframe_tolerance: None,
             sparse: SparseMode::Auto,
+            colliders: Vec::new(),
+            thickness: None,
+            friction: DEFAULT_FRICTION,
+            wind: None,
+            drag: None,
+            lift: None,
+            turbulence: 0.0,
+            seed: 0,
         }
     }
 }
@@ -208,6 +237,8 @@ pub struct ClothReport {
     pub cache: CacheReport,
     /// The vertex-animation texture, when `--vat` was given.
     pub vat: Option<VatReport>,
+    /// Colliders, contacts and wind, when any.
+    pub environment: Option<EnvironmentReport>,
     /// Non-fatal quirks of the input.
     pub warnings: Vec<String>,
 }
@@ -233,6 +264,36 @@ pub struct VatReport {
     pub bytes: u64,
     /// What the JSON says (layout, bounds, mode).
     pub manifest: VatManifest,
+}
+
+/// The environment of a bake, as used.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct EnvironmentReport {
+    /// Each collider, described.
+    pub colliders: Vec<String>,
+    /// Collision thickness used, m.
+    pub thickness: f64,
+    /// Coulomb friction coefficient.
+    pub friction: f64,
+    /// Particles touching a collider at the end of each frame.
+    pub contacts: Vec<usize>,
+    /// The wind, when any.
+    pub wind: Option<WindReport>,
+}
+
+/// The wind of a bake, as used.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct WindReport {
+    /// Mean wind velocity, m/s.
+    pub velocity: [f64; 3],
+    /// Drag coefficient.
+    pub drag: f64,
+    /// Lift coefficient.
+    pub lift: f64,
+    /// Gust strength relative to the wind speed.
+    pub turbulence: f64,
+    /// Gust seed.
+    pub seed: u64,
 }
 
 /// Spring counts by kind.
@@ -386,6 +447,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         bend: springs.count(SpringKind::Bend),
     };
     let model = ClothModel::new(mesh, springs, mass, pinned)?;
+    let colliders = prepare_colliders(job, &model)?;
+    let wind = prepare_wind(job)?;
     let params = BakeParams {
         frames,
         fps,
@@ -396,6 +459,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         iterations: job.iterations,
         tolerance: positive("--tolerance", job.tolerance)?,
         max_newton: job.max_newton,
+        colliders,
+        wind,
     };
     Ok(PreparedCloth {
         model,
@@ -404,6 +469,59 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         bend_stiffness,
         counts,
     })
+}
+
+/// Loads the colliders and resolves `--thickness` and `--friction`.
+fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
+    let shapes = job
+        .colliders
+        .iter()
+        .map(Collider::from_spec)
+        .collect::<Result<Vec<_>>>()?;
+    let thickness = match job.thickness {
+        Some(t) => positive("--thickness", t)?,
+        None => DEFAULT_THICKNESS_FRACTION * mean_edge_length(model),
+    };
+    Ok(Colliders {
+        shapes,
+        thickness,
+        friction: non_negative("--friction", job.friction)?,
+    })
+}
+
+/// Mean rest length of the model's stretch springs (its edges), m; 1 cm when there are none.
+fn mean_edge_length(model: &ClothModel) -> f64 {
+    let edges: Vec<f64> = model
+        .springs
+        .iter()
+        .filter(|s| s.kind == SpringKind::Stretch)
+        .map(|s| s.rest)
+        .collect();
+    if edges.is_empty() {
+        0.01
+    } else {
+        edges.iter().sum::<f64>() / edges.len() as f64
+    }
+}
+
+/// The aerodynamics, on when any of `--wind`, `--drag` or `--lift` is given.
+fn prepare_wind(job: &ClothJob) -> Result<Option<Wind>> {
+    if job.wind.is_none() && job.drag.is_none() && job.lift.is_none() {
+        if job.turbulence != 0.0 {
+            return Err(Error::option(
+                "--turbulence",
+                "gusts need a mean wind: give --wind X,Y,Z too",
+            ));
+        }
+        return Ok(None);
+    }
+    Ok(Some(Wind {
+        velocity: job.wind.unwrap_or(DVec3::ZERO),
+        drag: non_negative("--drag", job.drag.unwrap_or(wind::DEFAULT_DRAG))?,
+        lift: non_negative("--lift", job.lift.unwrap_or(wind::DEFAULT_LIFT))?,
+        turbulence: non_negative("--turbulence", job.turbulence)?,
+        seed: job.seed,
+    }))
 }
 
 /// Checks the export options that need no mesh: `--keyframe-tolerance`, `--vat`,
@@ -555,6 +673,26 @@ fn export(
     })
 }
 
+fn environment_report(params: &BakeParams, frames: &[StepStats]) -> Option<EnvironmentReport> {
+    if params.colliders.is_empty() && params.wind.is_none() {
+        return None;
+    }
+    let c = &params.colliders;
+    Some(EnvironmentReport {
+        colliders: c.shapes.iter().map(Collider::describe).collect(),
+        thickness: c.thickness,
+        friction: c.friction,
+        contacts: frames.iter().map(|f| f.contacts).collect(),
+        wind: params.wind.as_ref().map(|w| WindReport {
+            velocity: w.velocity.to_array(),
+            drag: w.drag,
+            lift: w.lift,
+            turbulence: w.turbulence,
+            seed: w.seed,
+        }),
+    })
+}
+
 fn report(
     prepared: &PreparedCloth,
     job: &ClothJob,
@@ -606,6 +744,7 @@ fn report(
         output_bytes: written.bytes,
         cache,
         vat,
+        environment: environment_report(params, frames),
         warnings: {
             let mut w = model.warnings.clone();
             let capped = frames.iter().filter(|f| !f.converged).count();

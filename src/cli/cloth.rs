@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 use scenebake::bake::cloth::{ClothJob, ClothSource};
+use scenebake::cloth::collide::{ColliderSpec, DEFAULT_FRICTION};
 use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::SolverKind;
 use scenebake::export::Interpolation;
@@ -114,6 +115,34 @@ pub struct ClothArgs {
     /// Store morph-target deltas as sparse accessors (changed vertices only) where smaller.
     #[arg(long, value_enum, default_value_t = SparseArg::Auto)]
     pub sparse: SparseArg,
+    /// A static collider (repeatable): plane:NX,NY,NZ,D (the half-space n·x ≤ D is solid, e.g.
+    /// plane:0,1,0,0 is the ground y = 0), sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1, or
+    /// mesh:FILE.obj (closed meshes are solid, open ones two-sided). Written into the glTF as
+    /// static meshes.
+    #[arg(long = "collider", value_name = "SPEC", value_parser = parse_collider, allow_hyphen_values = true)]
+    pub colliders: Vec<ColliderSpec>,
+    /// How far particles stay from collider surfaces, in metres [default: a quarter of the
+    /// mean edge length].
+    #[arg(long, value_name = "M")]
+    pub thickness: Option<f64>,
+    /// Coulomb friction coefficient against colliders (0 = ice).
+    #[arg(long, default_value_t = DEFAULT_FRICTION, value_name = "MU")]
+    pub friction: f64,
+    /// Mean wind velocity in m/s; turns on aerodynamic drag and lift on every triangle.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub wind: Option<DVec3>,
+    /// Drag coefficient of the triangles (pressure along the normal) [default with wind: 1.0].
+    #[arg(long, value_name = "CD")]
+    pub drag: Option<f64>,
+    /// Lift coefficient of the triangles (force across the flow) [default with wind: 0.3].
+    #[arg(long, value_name = "CL")]
+    pub lift: Option<f64>,
+    /// Gusts: RMS gust speed as a fraction of the wind speed (0 = steady wind).
+    #[arg(long, default_value_t = 0.0, value_name = "T")]
+    pub turbulence: f64,
+    /// Seed of the gusts (the same seed gives the same bake).
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub seed: u64,
 }
 
 /// `--vat-mode` values.
@@ -173,6 +202,11 @@ fn parse_vec3(s: &str) -> Result<DVec3, String> {
         .map_err(|e| e.to_string().replace("invalid value for : ", ""))
 }
 
+fn parse_collider(s: &str) -> Result<ColliderSpec, String> {
+    s.parse::<ColliderSpec>()
+        .map_err(|e| e.to_string().replace("invalid value for --collider: ", ""))
+}
+
 fn parse_pin(s: &str) -> Result<PinSpec, String> {
     s.parse::<PinSpec>()
         .map_err(|e| e.to_string().replace("invalid value for --pin: ", ""))
@@ -225,6 +259,14 @@ impl ClothArgs {
             SparseArg::Auto => SparseMode::Auto,
             SparseArg::Off => SparseMode::Off,
         };
+        job.colliders = self.colliders.clone();
+        job.thickness = self.thickness;
+        job.friction = self.friction;
+        job.wind = self.wind;
+        job.drag = self.drag;
+        job.lift = self.lift;
+        job.turbulence = self.turbulence;
+        job.seed = self.seed;
         job
     }
 }

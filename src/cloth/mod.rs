@@ -3,6 +3,7 @@
 //! Data flows one way: [`ClothModel`] (particles, springs, masses, pins) → [`ReducedSystem`]
 //! (pins removed, unknowns ordered) → a [`StepSolver`] → [`simulate`] records a [`FrameCache`].
 
+pub mod collide;
 pub mod factor;
 pub mod fast;
 pub mod model;
@@ -11,6 +12,7 @@ pub mod pins;
 pub mod preset;
 pub mod springs;
 pub mod system;
+pub mod wind;
 
 use std::time::Instant;
 
@@ -20,6 +22,9 @@ pub use fast::FastSolver;
 pub use model::ClothModel;
 pub use newton::NewtonSolver;
 pub use system::{ReducedSystem, StepParams};
+pub use wind::{Aerodynamics, Wind};
+
+use collide::Colliders;
 
 use crate::error::{Error, Result};
 
@@ -32,6 +37,8 @@ pub struct StepStats {
     pub residual: f64,
     /// False when an iterative solver stopped at its cap before its tolerance.
     pub converged: bool,
+    /// Particles touching a collider at the end of the step (the most over a frame's substeps).
+    pub contacts: usize,
 }
 
 /// A time integrator advancing the free particles of a [`ReducedSystem`] by one step.
@@ -79,6 +86,10 @@ pub struct BakeParams {
     pub tolerance: f64,
     /// Newton iterations per step at most (default [`newton::DEFAULT_MAX_ITERATIONS`] = 50).
     pub max_newton: usize,
+    /// What the cloth collides with (none when empty).
+    pub colliders: Colliders,
+    /// Aerodynamic forces, when any.
+    pub wind: Option<Wind>,
 }
 
 impl BakeParams {
@@ -164,11 +175,14 @@ pub struct Simulation {
 /// When the system cannot be ordered or factored.
 pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn StepSolver>> {
     let sys = ReducedSystem::new(model, params.step_params())?;
+    let colliders = (!params.colliders.is_empty()).then(|| params.colliders.clone());
     Ok(match params.solver {
-        SolverKind::Fast => Box::new(FastSolver::new(sys, params.iterations)?),
-        SolverKind::Newton => {
-            Box::new(NewtonSolver::new(sys, params.tolerance, params.max_newton)?)
+        SolverKind::Fast => {
+            Box::new(FastSolver::new(sys, params.iterations)?.with_colliders(colliders))
         }
+        SolverKind::Newton => Box::new(
+            NewtonSolver::new(sys, params.tolerance, params.max_newton)?.with_colliders(colliders),
+        ),
     })
 }
 
@@ -192,14 +206,21 @@ pub fn simulate(
     let mut x = sys.gather(&all);
     let mut v = vec![DVec3::ZERO; x.len()];
     let guard = DivergenceGuard::new(model, params);
+    let mut air = params.wind.clone().map(|w| AirState::new(w, model));
+    let h = params.time_step();
     let mut frames = Vec::with_capacity(params.frames);
     for frame in 1..=params.frames {
         let mut stats = StepStats {
             iterations: 0,
             residual: 0.0,
             converged: true,
+            contacts: 0,
         };
-        for _ in 0..params.substeps {
+        for substep in 0..params.substeps {
+            if let Some(air) = &mut air {
+                let time = ((frame - 1) * params.substeps + substep) as f64 * h;
+                air.apply(solver.system(), time, h, &x, &mut v);
+            }
             let s = solver.step(&mut x, &mut v).map_err(|e| match e {
                 // Solvers don't know frames: name the frame being computed.
                 Error::Diverged { reason, .. } => Error::Diverged { frame, reason },
@@ -208,6 +229,7 @@ pub fn simulate(
             stats.iterations += s.iterations;
             stats.residual = stats.residual.max(s.residual);
             stats.converged &= s.converged;
+            stats.contacts = stats.contacts.max(s.contacts);
         }
         guard.check(frame, &x, solver.system())?;
         solver.system().scatter(&x, &mut all);
@@ -220,6 +242,34 @@ pub fn simulate(
         frames,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The aerodynamics of a bake with model-ordered copies of the state (pinned particles keep
+/// their rest positions and zero velocity).
+struct AirState {
+    aero: Aerodynamics,
+    x: Vec<DVec3>,
+    v: Vec<DVec3>,
+}
+
+impl AirState {
+    fn new(wind: Wind, model: &ClothModel) -> Self {
+        AirState {
+            aero: Aerodynamics::new(wind, model),
+            x: model.positions().to_vec(),
+            v: vec![DVec3::ZERO; model.particle_count()],
+        }
+    }
+
+    /// Integrates the aerodynamic forces over one step into the solver-ordered velocities `v`.
+    fn apply(&mut self, sys: &ReducedSystem, time: f64, h: f64, x: &[DVec3], v: &mut [DVec3]) {
+        sys.scatter(x, &mut self.x);
+        sys.scatter(v, &mut self.v);
+        self.aero.apply(time, h, &self.x, &mut self.v);
+        for (v, &p) in v.iter_mut().zip(&sys.particle_of) {
+            *v = self.v[p as usize];
+        }
+    }
 }
 
 /// Detects a simulation that has blown up: non-finite positions, or particles farther from the

@@ -41,6 +41,8 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use glam::DVec3;
 
+use super::collide::contact::Penalty;
+use super::collide::Colliders;
 use super::system::ReducedSystem;
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
@@ -107,6 +109,8 @@ pub struct NewtonSolver {
     history: Option<Vec<f64>>,
     /// Time steps taken (for error messages).
     steps: usize,
+    /// Contact and friction terms, when there are colliders.
+    penalty: Option<Penalty>,
 }
 
 impl NewtonSolver {
@@ -206,10 +210,22 @@ impl NewtonSolver {
             x0: vec![DVec3::ZERO; n],
             history: None,
             steps: 0,
+            penalty: None,
             tolerance,
             max_iterations,
             sys,
         })
+    }
+
+    /// Adds colliders as a stiff penalty with lagged Coulomb friction (see [`Penalty`]).
+    pub fn with_colliders(mut self, colliders: Option<Colliders>) -> Self {
+        self.penalty = colliders.map(|c| Penalty::new(c, &self.sys));
+        self
+    }
+
+    /// The objective g(x) plus the contact terms, joules.
+    fn energy(&self, x: &[DVec3]) -> f64 {
+        self.sys.objective(x, &self.y) + self.penalty.as_ref().map_or(0.0, |p| p.energy(x))
     }
 
     /// Records the relative residual at every Newton iterate of each step (the starting point
@@ -307,6 +323,10 @@ impl NewtonSolver {
             grad[a] += f;
             add_diag(values, &self.diag[a], &he);
         }
+        if let Some(penalty) = &self.penalty {
+            let diag = &self.diag;
+            penalty.add_derivatives(x, grad, |i, he| add_diag(values, &diag[i], &he));
+        }
     }
 
     fn factorize(&mut self) -> Result<()> {
@@ -396,6 +416,9 @@ impl StepSolver for NewtonSolver {
         let h = self.sys.params.time_step;
         let scale = self.sys.force_scale();
         self.x0.copy_from_slice(x);
+        if let Some(p) = &mut self.penalty {
+            p.begin_step(x);
+        }
         self.sys.predict(x, v, &mut self.y);
         x.copy_from_slice(&self.y);
         if let Some(hist) = &mut self.history {
@@ -422,7 +445,7 @@ impl StepSolver for NewtonSolver {
             iterations += 1;
 
             // Backtracking line search on g along dx.
-            let g0 = self.sys.objective(x, &self.y);
+            let g0 = self.energy(x);
             let slope: f64 = self
                 .grad
                 .iter()
@@ -443,7 +466,7 @@ impl StepSolver for NewtonSolver {
                 {
                     *t = *x + DVec3::from_slice(d) * alpha;
                 }
-                let g = self.sys.objective(&self.trial, &self.y);
+                let g = self.energy(&self.trial);
                 if g <= g0 + ARMIJO * alpha * slope + slack {
                     break;
                 }
@@ -455,10 +478,12 @@ impl StepSolver for NewtonSolver {
             *v = (*x - *x0) / h;
         }
         self.steps += 1;
+        let contacts = self.penalty.as_mut().map_or(0, |p| p.end_step(x));
         Ok(StepStats {
             iterations,
             residual,
             converged,
+            contacts,
         })
     }
 }

@@ -1,0 +1,196 @@
+//! Static colliders the cloth rests on: half-spaces, balls, boxes and triangle meshes.
+//!
+//! Positions are metres in the cloth's frame. Every collider answers one question per particle
+//! ([`Collider::contact`]): how far is the particle from the surface on the side it came from, and
+//! which way is out. A particle is in contact when that distance is below the collision
+//! thickness; the solvers then keep it at the thickness (the fast solver by projection with
+//! Coulomb friction, Newton by a stiff penalty with lagged friction, see [`contact`]).
+
+pub mod contact;
+pub mod mesh;
+pub mod shapes;
+
+use std::path::PathBuf;
+use std::str::FromStr;
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use crate::error::{Error, Result};
+use crate::spec::parse_numbers;
+pub use mesh::MeshCollider;
+pub use shapes::{Ball, Cuboid, HalfSpace};
+
+/// The nearest surface point of a collider as seen from a particle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePoint {
+    /// Signed distance of the particle from the surface, metres: positive on the free side.
+    pub distance: f64,
+    /// Unit normal at the nearest surface point, pointing to the free side.
+    pub normal: glam::DVec3,
+}
+
+/// One parsed `--collider` value, before any file is read.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ColliderSpec {
+    /// `plane:NX,NY,NZ,D`: the half-space n·x ≤ D is solid.
+    Plane(DVec3, f64),
+    /// `sphere:X,Y,Z,R`.
+    Sphere(DVec3, f64),
+    /// `box:X0,Y0,Z0,X1,Y1,Z1` (corners in either order).
+    Box(DVec3, DVec3),
+    /// `mesh:FILE.obj`: a static triangle mesh.
+    Mesh(PathBuf),
+}
+
+impl FromStr for ColliderSpec {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        const FORMS: &str =
+            "plane:NX,NY,NZ,D, sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or mesh:FILE.obj";
+        let bad = |m: String| Error::option("--collider", format!("`{s}`: {m}"));
+        let (kind, rest) = s
+            .split_once(':')
+            .ok_or_else(|| bad(format!("expected {FORMS}")))?;
+        match kind.trim() {
+            "plane" => {
+                let c = parse_numbers::<4>("--collider", rest, "plane:NX,NY,NZ,D")?;
+                let n = DVec3::new(c[0], c[1], c[2]);
+                if n.length() == 0.0 {
+                    return Err(bad("the plane's normal is zero".into()));
+                }
+                Ok(ColliderSpec::Plane(n, c[3]))
+            }
+            "sphere" => {
+                let c = parse_numbers::<4>("--collider", rest, "sphere:X,Y,Z,R")?;
+                if c[3] <= 0.0 {
+                    return Err(bad(format!("radius {} must be positive", c[3])));
+                }
+                Ok(ColliderSpec::Sphere(DVec3::new(c[0], c[1], c[2]), c[3]))
+            }
+            "box" => {
+                let c = parse_numbers::<6>("--collider", rest, "box:X0,Y0,Z0,X1,Y1,Z1")?;
+                let (a, b) = (DVec3::new(c[0], c[1], c[2]), DVec3::new(c[3], c[4], c[5]));
+                if a.cmpeq(b).any() {
+                    return Err(bad("the box is flat: give two opposite corners".into()));
+                }
+                Ok(ColliderSpec::Box(a.min(b), a.max(b)))
+            }
+            "mesh" if !rest.trim().is_empty() => Ok(ColliderSpec::Mesh(PathBuf::from(rest.trim()))),
+            "mesh" => Err(bad("the mesh file name is empty".into())),
+            other => Err(bad(format!(
+                "unknown collider kind `{other}` (use {FORMS})"
+            ))),
+        }
+    }
+}
+
+/// A collider ready for queries.
+#[derive(Debug, Clone)]
+pub enum Collider {
+    /// A solid half-space (the ground).
+    Plane(HalfSpace),
+    /// A solid ball.
+    Sphere(Ball),
+    /// A solid axis-aligned box.
+    Box(Cuboid),
+    /// A triangle mesh (solid when closed, a two-sided shell when open), shared between solvers.
+    Mesh(Arc<MeshCollider>),
+}
+
+impl PartialEq for Collider {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Collider::Plane(a), Collider::Plane(b)) => a == b,
+            (Collider::Sphere(a), Collider::Sphere(b)) => a == b,
+            (Collider::Box(a), Collider::Box(b)) => a == b,
+            (Collider::Mesh(a), Collider::Mesh(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
+}
+
+impl Collider {
+    /// Builds the collider a spec names, reading mesh files (relative to the working directory).
+    ///
+    /// # Errors
+    /// The mesh loader's errors, naming the file.
+    pub fn from_spec(spec: &ColliderSpec) -> Result<Self> {
+        Ok(match spec {
+            ColliderSpec::Plane(n, d) => Collider::Plane(
+                HalfSpace::new(*n, *d)
+                    .ok_or_else(|| Error::option("--collider", "the plane's normal is zero"))?,
+            ),
+            ColliderSpec::Sphere(centre, radius) => Collider::Sphere(Ball {
+                centre: *centre,
+                radius: *radius,
+            }),
+            ColliderSpec::Box(min, max) => Collider::Box(Cuboid {
+                min: *min,
+                max: *max,
+            }),
+            ColliderSpec::Mesh(path) => Collider::Mesh(Arc::new(MeshCollider::from_obj(path)?)),
+        })
+    }
+
+    /// Where particle `p` is relative to this collider, given `from`, its position at the start
+    /// of the time step. `None` when it is farther than `reach` (m) on the free side (analytic
+    /// shapes always answer; they are cheap).
+    #[inline]
+    pub fn contact(&self, p: DVec3, from: DVec3, reach: f64) -> Option<SurfacePoint> {
+        match self {
+            Collider::Plane(h) => Some(h.surface_point(p)),
+            Collider::Sphere(b) => Some(b.surface_point(p)),
+            Collider::Box(c) => Some(c.surface_point(p)),
+            Collider::Mesh(m) => m.contact(p, from, reach),
+        }
+    }
+
+    /// A short human-readable description (for reports).
+    pub fn describe(&self) -> String {
+        match self {
+            Collider::Plane(h) => format!(
+                "plane n=({:.3},{:.3},{:.3}) d={:.4}",
+                h.normal.x, h.normal.y, h.normal.z, h.offset
+            ),
+            Collider::Sphere(b) => format!(
+                "sphere c=({:.3},{:.3},{:.3}) r={:.4}",
+                b.centre.x, b.centre.y, b.centre.z, b.radius
+            ),
+            Collider::Box(c) => format!(
+                "box ({:.3},{:.3},{:.3})..({:.3},{:.3},{:.3})",
+                c.min.x, c.min.y, c.min.z, c.max.x, c.max.y, c.max.z
+            ),
+            Collider::Mesh(m) => format!(
+                "mesh, {} triangles, {}",
+                m.triangles().len(),
+                if m.is_closed() { "closed" } else { "open" }
+            ),
+        }
+    }
+}
+
+/// Default Coulomb friction coefficient (`--friction`): cotton on wood is around 0.3–0.5.
+pub const DEFAULT_FRICTION: f64 = 0.4;
+
+/// Default collision thickness as a fraction of the cloth's mean edge length (`--thickness`).
+pub const DEFAULT_THICKNESS_FRACTION: f64 = 0.25;
+
+/// The colliders of a bake with their contact parameters.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Colliders {
+    /// The colliders, queried in order.
+    pub shapes: Vec<Collider>,
+    /// Particles stay at least this far (m) from every collider surface.
+    pub thickness: f64,
+    /// Coulomb friction coefficient μ (dimensionless, ≥ 0).
+    pub friction: f64,
+}
+
+impl Colliders {
+    /// True when there is nothing to collide with.
+    pub fn is_empty(&self) -> bool {
+        self.shapes.is_empty()
+    }
+}
