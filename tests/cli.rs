@@ -168,6 +168,45 @@ fn bad_option_values_name_the_option() {
         ),
         (&["--solver", "magic"], &["--solver", "magic"]),
         (
+            &["--collider", "cone:1,2,3"],
+            &["--collider", "unknown collider kind `cone`"],
+        ),
+        (
+            &["--collider", "plane:0,1,0"],
+            &["--collider", "4 comma-separated"],
+        ),
+        (
+            &["--collider", "plane:0,0,0,1"],
+            &["--collider", "normal is zero"],
+        ),
+        (
+            &["--collider", "sphere:0,0,0,-1"],
+            &["--collider", "radius -1 must be positive"],
+        ),
+        (&["--collider", "box:0,0,0,1,0,1"], &["--collider", "flat"]),
+        (
+            &["--collider", "mesh:"],
+            &["--collider", "file name is empty"],
+        ),
+        (
+            &["--collider", "mesh:/nonexistent/table.obj"],
+            &["/nonexistent/table.obj"],
+        ),
+        (
+            &["--collider", "plane:0,1,0,-1", "--thickness", "0"],
+            &["--thickness", "positive"],
+        ),
+        (
+            &["--collider", "plane:0,1,0,-1", "--friction", "-0.5"],
+            &["--friction", "zero or a positive"],
+        ),
+        (&["--wind", "1,2"], &["--wind", "3 comma-separated"]),
+        (
+            &["--wind", "5,0,0", "--drag", "-1"],
+            &["--drag", "zero or a positive"],
+        ),
+        (&["--turbulence", "0.3"], &["--turbulence", "give --wind"]),
+        (
             &["--object", "nope"],
             &["--object", "no object or group named `nope`"],
         ),
@@ -295,6 +334,35 @@ fn a_scene_runs_its_jobs_and_reports() {
         jobs[1]["report"]["springs_by_kind"]["bend"], 0,
         "bend_stiffness = 0 is honoured"
     );
+    // A collider mesh in a scene is found relative to the scene file, like every other path.
+    std::fs::copy(mesh("cube_5.obj"), dir.path().join("block.obj")).unwrap();
+    let draped = dir.path().join("drape.toml");
+    std::fs::write(
+        &draped,
+        format!(
+            "[[cloth]]\nname = \"drape\"\ninput = \"{}\"\nframes = 3\ncollider = [\"mesh:block.obj\", \"plane:0,1,0,-2\"]\nwind = \"1,0,0\"\noutput = \"out/drape.glb\"\n",
+            mesh("plane_30x30.obj").display()
+        ),
+    )
+    .unwrap();
+    let drape_report = dir.path().join("drape.json");
+    let (code, err) = scenebake([
+        "run",
+        draped.to_str().unwrap(),
+        "--report",
+        drape_report.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&drape_report).unwrap()).unwrap();
+    let env = &r["jobs"][0]["report"]["environment"];
+    assert_eq!(env["colliders"].as_array().unwrap().len(), 2, "{env}");
+    assert!(
+        env["colliders"][0].as_str().unwrap().starts_with("mesh"),
+        "{env}"
+    );
+    assert_eq!(env["wind"]["velocity"][0], 1.0, "{env}");
+
     // --only runs one job.
     std::fs::remove_file(dir.path().join("out/lab.glb")).unwrap();
     let (code, err) = scenebake(["run", scene.to_str().unwrap(), "--only", "lab"]);
