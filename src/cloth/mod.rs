@@ -3,6 +3,7 @@
 //! Data flows one way: [`ClothModel`] (particles, springs, masses, pins) → [`ReducedSystem`]
 //! (pins removed, unknowns ordered) → a [`StepSolver`] → [`simulate`] records a [`FrameCache`].
 
+pub mod collide;
 pub mod factor;
 pub mod fast;
 pub mod model;
