@@ -486,6 +486,7 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
         normals: job.normals,
         keyframe_tolerance: job.keyframe_tolerance,
         sparse: job.sparse,
+        static_meshes: Vec::new(),
     };
     let exported = export(job, model, &sim.cache, options)?;
     let seconds_export = export_start.elapsed().as_secs_f64();
