@@ -114,6 +114,12 @@ fn plane_sphere_and_cuboid_are_written_beside_the_cloth() {
         assert_eq!(a.normal_deltas, b.normal_deltas);
         assert_eq!((a.times, a.weights), (b.times, b.weights));
 
+        // `scenebake inspect` accepts meshes without morph targets.
+        let inspection = scenebake::inspect::inspect(&out).unwrap();
+        let failed: Vec<_> = inspection.failures().map(|c| c.what.clone()).collect();
+        assert!(failed.is_empty(), "{failed:?}");
+        assert_eq!(inspection.meshes.len(), 4);
+
         let statics = load_statics(&out);
         let names: Vec<&str> = statics.iter().map(|s| s.name.as_str()).collect();
         assert_eq!(names, ["ground", "ball", "table"]);
