@@ -28,6 +28,23 @@ const LEAF_SIZE: usize = 4;
 ///
 /// Closed, consistently oriented meshes ([`MeshCollider::is_closed`]) are solids: inside is
 /// defined and reported as a negative distance. Other meshes are two-sided thin shells.
+///
+/// ```
+/// use scenebake::cloth::collide::mesh::MeshCollider;
+/// use scenebake::glam::DVec3;
+///
+/// // The demo table: a 1.2 × 0.8 m top whose upper face is at y = 0.75 m, on four legs.
+/// let table = MeshCollider::from_obj("meshes/table.obj".as_ref())?;
+/// assert!(table.is_closed());
+/// // A particle 1 cm above the top, coming from higher up, looking 5 cm around it.
+/// let p = DVec3::new(0.1, 0.76, 0.0);
+/// let contact = table.contact(p, p + DVec3::Y * 0.01, 0.05).unwrap();
+/// assert!((contact.distance - 0.01).abs() < 1e-9);
+/// assert!(contact.normal.abs_diff_eq(DVec3::Y, 1e-9));
+/// // Far above: nothing within reach.
+/// assert_eq!(table.contact(DVec3::new(0.0, 2.0, 0.0), DVec3::ZERO, 0.05), None);
+/// # Ok::<(), scenebake::Error>(())
+/// ```
 pub struct MeshCollider {
     positions: Vec<DVec3>,
     triangles: Vec<[u32; 3]>,
@@ -238,8 +255,11 @@ impl MeshCollider {
                 let crossing = from + (p - from) * t;
                 // The crossing point bounds the search: the nearest point is at least as close.
                 let bound = (p - crossing).length() * (1.0 + 1e-9) + self.tiny;
+                // (The crossing may sit on an edge's tolerance band, just off the triangle:
+                // then search without a bound.)
                 let distance = self
                     .nearest(p, bound)
+                    .or_else(|| self.nearest(p, f64::INFINITY))
                     .map_or(0.0, |n| n.distance_squared.sqrt());
                 let tri = &self.tris[tri];
                 let normal = if tri.normal.dot(from - tri.a) >= 0.0 {
