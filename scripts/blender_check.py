@@ -20,6 +20,11 @@ Options (after the `--`):
                             that skin (by name); any animation -> an action.
                             Shape keys must also carry the names given in
                             mesh.extras.targetNames, when there are any.
+                            A node whose mesh has no morph targets and no
+                            skin (a static mesh, e.g. a collider written
+                            beside the cloth) -> a mesh object named after
+                            the node, without shape keys, with as many
+                            vertices as its POSITION accessors hold.
   --expect-shape-keys N     some mesh object has exactly N shape keys,
                             counting "Basis" (cloth bakes: frames + 1)
   --expect-bones A,B,...    one armature object has bones with all these names
@@ -160,6 +165,9 @@ def auto_expectations(doc):
       skins:      list of (skin label, [joint names], unnamed joint count)
       action:     True if an action is expected
       meshes:     True if at least one mesh object is expected
+      statics:    list of (node label, Blender object name or None when the
+                  node has no name, vertex count) for nodes whose mesh has no
+                  morph targets and that carry no skin
     """
     nodes = doc.get("nodes", [])
     meshes = doc.get("meshes", [])
@@ -179,6 +187,19 @@ def auto_expectations(doc):
                     and all(isinstance(n, str) and n and n == blender_name(n) for n in names)
                     and len(set(names)) == len(names) and "Basis" not in names):
                 key_names.append((mesh.get("name") or f"meshes[{mi}]", names))
+    accessors = doc.get("accessors", [])
+    statics = []
+    for ni, node in enumerate(nodes):
+        if "mesh" not in node or "skin" in node:
+            continue
+        prims = meshes[node["mesh"]].get("primitives", [])
+        if any(p.get("targets") for p in prims):
+            continue
+        vertices = sum(accessors[p["attributes"]["POSITION"]]["count"]
+                       for p in prims if "POSITION" in p.get("attributes", {}))
+        name = node.get("name")
+        statics.append((f"nodes[{ni}] ({name})" if name else f"nodes[{ni}]",
+                        blender_name(name) if name else None, vertices))
     skins = []
     for si, skin in enumerate(doc.get("skins", [])):
         names, unnamed = [], 0
@@ -195,6 +216,7 @@ def auto_expectations(doc):
         "skins": skins,
         "action": bool(doc.get("animations")) or bool(shape_keys),
         "meshes": bool(used_meshes),
+        "statics": statics,
     }
 
 
@@ -301,6 +323,26 @@ def check_expectations(objects, args, auto):
 
     if (args.expect_action or (auto and auto["action"])) and not bpy.data.actions:
         failures.append("expected at least one action, bpy.data.actions is empty")
+
+    if auto:
+        # Static meshes: by object name (Blender appends ".001"... to a name
+        # already taken), else by vertex count among objects without shape keys.
+        plain = [o for o in mesh_objs if not o.data.shape_keys]
+        for label, name, vertices in auto["statics"]:
+            if name is not None:
+                named = [o for o in plain
+                         if o.name == name or (o.name.startswith(name + ".")
+                                               and o.name[len(name) + 1:].isdigit())]
+                if not named:
+                    failures.append(f"{label}: static mesh: no mesh object named {name!r} "
+                                    f"without shape keys")
+                elif not any(len(o.data.vertices) == vertices for o in named):
+                    failures.append(f"{label}: static mesh {name!r} has "
+                                    f"{[len(o.data.vertices) for o in named]} vertices, "
+                                    f"expected {vertices}")
+            elif not any(len(o.data.vertices) == vertices for o in plain):
+                failures.append(f"{label}: static mesh: no mesh object without shape keys "
+                                f"has {vertices} vertices")
 
     if auto and auto["meshes"] and not mesh_objs:
         failures.append("the glTF has meshes but no mesh object was imported")

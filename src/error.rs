@@ -39,6 +39,14 @@ pub enum Error {
         /// What was wrong, naming the element.
         message: String,
     },
+    /// A triangle mesh given as a collider is unusable.
+    #[error("collider mesh{}: {problem}", path_suffix(path.as_deref()))]
+    ColliderMesh {
+        /// The mesh file, when the mesh came from one.
+        path: Option<PathBuf>,
+        /// What is wrong, naming the element.
+        problem: ColliderMeshProblem,
+    },
     /// A command-line option or scene-file key has an invalid value.
     #[error("invalid value for {option}: {message}")]
     InvalidOption {
@@ -142,6 +150,39 @@ fn describe_gltf(e: &gltf::Error) -> String {
         }
         other => other.to_string(),
     }
+}
+
+/// Why a collider mesh was refused (see [`Error::ColliderMesh`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ColliderMeshProblem {
+    /// A position has a NaN or infinite coordinate.
+    #[error("position {index} is not finite")]
+    NonFinitePosition {
+        /// Zero-based index of the position.
+        index: usize,
+    },
+    /// A triangle refers to a position that does not exist.
+    #[error("triangle {triangle} refers to position {index}, but there are {positions} positions")]
+    IndexOutOfRange {
+        /// Zero-based index of the triangle.
+        triangle: usize,
+        /// The offending zero-based position index.
+        index: u32,
+        /// How many positions there are.
+        positions: usize,
+    },
+    /// Every triangle is degenerate (repeated corner or zero area), or there are none.
+    #[error("no triangle of non-zero area ({dropped} degenerate triangles dropped)")]
+    NoTriangles {
+        /// How many degenerate triangles were dropped.
+        dropped: usize,
+    },
+}
+
+fn path_suffix(path: Option<&std::path::Path>) -> String {
+    path.map(|p| format!(" {}", p.display()))
+        .unwrap_or_default()
 }
 
 fn location_suffix(line: Option<usize>) -> String {

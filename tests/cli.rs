@@ -206,6 +206,8 @@ fn bad_option_values_name_the_option() {
             &["--drag", "zero or a positive"],
         ),
         (&["--turbulence", "0.3"], &["--turbulence", "give --wind"]),
+        (&["--scale", "0"], &["--scale", "positive"]),
+        (&["--translate", "1,nan,0"], &["--translate", "not a finite number"]),
         (
             &["--object", "nope"],
             &["--object", "no object or group named `nope`"],

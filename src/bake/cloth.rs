@@ -119,6 +119,11 @@ pub struct ClothJob {
     pub keyframe_tolerance: Option<f64>,
     /// `--sparse`: sparse morph-target accessors where smaller (`auto`) or never (`off`).
     pub sparse: SparseMode,
+    /// `--scale S`: the input file is scaled about its origin by S, then…
+    pub scale: f64,
+    /// `--translate X,Y,Z` (m): …moved by this offset, before anything else (pins and colliders
+    /// are in the placed coordinates).
+    pub translate: DVec3,
     /// `--collider SPEC` (repeatable); mesh paths as given (relative to the working directory).
     pub colliders: Vec<ColliderSpec>,
     /// `--thickness` (m): how far particles stay from colliders; default a quarter of the mean
@@ -168,6 +173,8 @@ impl ClothJob {
             vat_max_width: DEFAULT_MAX_WIDTH,
             keyframe_tolerance: None,
             sparse: SparseMode::Auto,
+            scale: 1.0,
+            translate: DVec3::ZERO,
             colliders: Vec::new(),
             thickness: None,
             friction: DEFAULT_FRICTION,
@@ -420,7 +427,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             (lab.mesh, lab.springs, pinned)
         }
         ClothSource::File(path) => {
-            let mesh = load_body(path, job)?;
+            let mut mesh = load_body(path, job)?;
+            place(&mut mesh, job)?;
             let springs = if mesh.tets.is_empty() {
                 surface_springs(&mesh, stiffness, bend_stiffness)
             } else {
@@ -469,6 +477,20 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         bend_stiffness,
         counts,
     })
+}
+
+/// Applies `--scale` and `--translate` to a loaded body.
+fn place(mesh: &mut Mesh, job: &ClothJob) -> Result<()> {
+    let scale = positive("--scale", job.scale)?;
+    if !job.translate.is_finite() {
+        return Err(Error::option("--translate", "must be finite"));
+    }
+    if scale != 1.0 || job.translate != DVec3::ZERO {
+        for p in &mut mesh.positions {
+            *p = *p * scale + job.translate;
+        }
+    }
+    Ok(())
 }
 
 /// Loads the colliders and resolves `--thickness` and `--friction`.
@@ -604,6 +626,7 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
         normals: job.normals,
         keyframe_tolerance: job.keyframe_tolerance,
         sparse: job.sparse,
+        static_meshes: collider_meshes(model, &params.colliders),
     };
     let exported = export(job, model, &sim.cache, options)?;
     let seconds_export = export_start.elapsed().as_secs_f64();
@@ -615,6 +638,19 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
         seconds_export,
         exported,
     ))
+}
+
+/// The colliders as static meshes named `collider_1`, `collider_2`...; planes as squares four
+/// times the cloth's size, under its centre.
+fn collider_meshes(model: &ClothModel, colliders: &Colliders) -> Vec<crate::export::StaticMesh> {
+    let (lo, hi) = model.mesh.bounds();
+    let size = 4.0 * (hi - lo).length().max(0.5);
+    colliders
+        .shapes
+        .iter()
+        .enumerate()
+        .map(|(i, c)| c.static_mesh(format!("collider_{}", i + 1), (lo + hi) * 0.5, size))
+        .collect()
 }
 
 /// What the export step wrote.

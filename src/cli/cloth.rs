@@ -115,6 +115,13 @@ pub struct ClothArgs {
     /// Store morph-target deltas as sparse accessors (changed vertices only) where smaller.
     #[arg(long, value_enum, default_value_t = SparseArg::Auto)]
     pub sparse: SparseArg,
+    /// Scale the input file about its origin by S (before --translate; not for presets).
+    #[arg(long, default_value_t = 1.0, value_name = "S")]
+    pub scale: f64,
+    /// Move the input file by this offset in metres, after --scale; pins and colliders are given
+    /// in the placed coordinates.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub translate: Option<DVec3>,
     /// A static collider (repeatable): plane:NX,NY,NZ,D (the half-space n·x ≤ D is solid, e.g.
     /// plane:0,1,0,0 is the ground y = 0), sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1, or
     /// mesh:FILE.obj (closed meshes are solid, open ones two-sided). Written into the glTF as
@@ -259,6 +266,8 @@ impl ClothArgs {
             SparseArg::Auto => SparseMode::Auto,
             SparseArg::Off => SparseMode::Off,
         };
+        job.scale = self.scale;
+        job.translate = self.translate.unwrap_or(DVec3::ZERO);
         job.colliders = self.colliders.clone();
         job.thickness = self.thickness;
         job.friction = self.friction;

@@ -6,10 +6,12 @@ pub mod frames;
 pub mod gltf_doc;
 pub mod morph;
 pub mod skin;
+pub mod statics;
 pub mod vat;
 
 pub use compact::SparseMode;
 pub use frames::RenderFrames;
 pub use gltf_doc::{GltfBuilder, Written};
 pub use morph::{write_morph_gltf, CacheStats, Interpolation, MorphOptions};
+pub use statics::StaticMesh;
 pub use vat::{VatMode, VatOptions};

@@ -21,6 +21,7 @@ use super::compact::{
 };
 use super::frames::RenderFrames;
 use super::gltf_doc::{channel, primitive, sampler, GltfBuilder, Written};
+use super::statics::{push_static_meshes, StaticMesh};
 use crate::cloth::FrameCache;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -52,10 +53,14 @@ pub struct MorphOptions {
     pub keyframe_tolerance: Option<f64>,
     /// `--sparse`: whether delta accessors may be sparse.
     pub sparse: SparseMode,
+    /// Unanimated meshes (the colliders) written as their own nodes after the cloth's, in the
+    /// same scene; the cloth stays mesh 0 and node 0.
+    pub static_meshes: Vec<StaticMesh>,
 }
 
 impl MorphOptions {
-    /// Options at their defaults (linear, normals on, every frame, sparse where smaller).
+    /// Options at their defaults (linear, normals on, every frame, sparse where smaller, no
+    /// static mesh).
     pub fn new(name: impl Into<String>, fps: f64) -> Self {
         MorphOptions {
             fps,
@@ -64,6 +69,7 @@ impl MorphOptions {
             normals: true,
             keyframe_tolerance: None,
             sparse: SparseMode::Auto,
+            static_meshes: Vec::new(),
         }
     }
 }
@@ -136,7 +142,8 @@ pub fn check_cache(path: &Path, mesh: &Mesh, cache: &FrameCache) -> Result<()> {
 /// without writing it.
 ///
 /// # Errors
-/// [`Error::Export`] for a bad extension or too few frames; [`Error::InvalidOption`] naming
+/// [`Error::Export`] for a bad extension, too few frames, or a static mesh that cannot be
+/// written (no triangle, index out of range, non-finite position); [`Error::InvalidOption`] naming
 /// `--keyframe-tolerance` when it is negative or not finite; [`Error::Json`].
 pub fn encode_morph_gltf(
     path: &Path,
@@ -153,6 +160,16 @@ pub fn encode_morph_gltf(
                 frames.vertex_count(),
                 mesh.render_vertices.len()
             ),
+        });
+    }
+    if let Some((name, problem)) = options
+        .static_meshes
+        .iter()
+        .find_map(|s| s.problem().map(|p| (&s.name, p)))
+    {
+        return Err(Error::Export {
+            path: path.into(),
+            message: format!("static mesh `{name}` {problem}"),
         });
     }
     let selection = match options.keyframe_tolerance {
@@ -200,9 +217,11 @@ pub fn encode_morph_gltf(
         mesh: Some(gmesh),
         ..Default::default()
     });
+    let mut nodes = vec![node];
+    nodes.extend(push_static_meshes(&mut b, &options.static_meshes));
     let scene = b.root.push(json::Scene {
         name: Some("scenebake".into()),
-        nodes: vec![node],
+        nodes,
         extensions: None,
         extras: Default::default(),
     });

@@ -17,6 +17,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use crate::error::{Error, Result};
+use crate::export::StaticMesh;
 use crate::spec::parse_numbers;
 pub use mesh::MeshCollider;
 pub use shapes::{Ball, Cuboid, HalfSpace};
@@ -144,6 +145,17 @@ impl Collider {
             Collider::Sphere(b) => Some(b.surface_point(p)),
             Collider::Box(c) => Some(c.surface_point(p)),
             Collider::Mesh(m) => m.contact(p, from, reach),
+        }
+    }
+
+    /// The collider as a static mesh for the exported scene, named `name`. A plane becomes a
+    /// square of side `size` (m) centred under `centre` (the cloth's centre).
+    pub fn static_mesh(&self, name: String, centre: DVec3, size: f64) -> StaticMesh {
+        match self {
+            Collider::Plane(h) => StaticMesh::plane(h.normal, h.offset, centre, size, name),
+            Collider::Sphere(b) => StaticMesh::sphere(b.centre, b.radius, name),
+            Collider::Box(c) => StaticMesh::cuboid(c.min, c.max, name),
+            Collider::Mesh(m) => StaticMesh::from_triangles(m.positions(), m.triangles(), name),
         }
     }
 
