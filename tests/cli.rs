@@ -207,7 +207,10 @@ fn bad_option_values_name_the_option() {
         ),
         (&["--turbulence", "0.3"], &["--turbulence", "give --wind"]),
         (&["--scale", "0"], &["--scale", "positive"]),
-        (&["--translate", "1,nan,0"], &["--translate", "not a finite number"]),
+        (
+            &["--translate", "1,nan,0"],
+            &["--translate", "not a finite number"],
+        ),
         (
             &["--object", "nope"],
             &["--object", "no object or group named `nope`"],

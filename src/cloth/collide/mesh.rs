@@ -42,7 +42,8 @@ const LEAF_SIZE: usize = 4;
 /// assert!((contact.distance - 0.01).abs() < 1e-9);
 /// assert!(contact.normal.abs_diff_eq(DVec3::Y, 1e-9));
 /// // Far above: nothing within reach.
-/// assert_eq!(table.contact(DVec3::new(0.0, 2.0, 0.0), DVec3::ZERO, 0.05), None);
+/// let far = DVec3::new(0.0, 2.0, 0.0);
+/// assert_eq!(table.contact(far, far, 0.05), None);
 /// # Ok::<(), scenebake::Error>(())
 /// ```
 pub struct MeshCollider {
@@ -230,7 +231,10 @@ impl MeshCollider {
     ///
     /// - Closed mesh: the free side is the outside; `distance` is negative inside (the sign of
     ///   `p − c` against the angle-weighted pseudo-normal of the feature nearest to `p`,
-    ///   Bærentzen & Aanæs 2005); `from` is ignored.
+    ///   Bærentzen & Aanæs 2005). When the segment `from → p` enters the mesh, the entry face
+    ///   decides instead: `distance` is p's signed distance from that face's plane and `normal`
+    ///   the face's, so a particle that moved deeper than half a thin part in one step is still
+    ///   pushed back out on the side it came from.
     /// - Open mesh: a two-sided thin shell; the free side is the side `from` is on. If the
     ///   segment `from → p` crosses the surface, `p` has tunnelled: `distance` is minus the
     ///   distance from `p` to the surface and `normal` the first crossed triangle's normal
@@ -248,6 +252,20 @@ impl MeshCollider {
             return None;
         }
         if self.closed {
+            // Entered since the step began (the first crossing of from → p goes in through a
+            // face turned towards `from`): measure against that face, so a particle that went
+            // deeper than half a thin part (a table top) still comes back out on its own side.
+            if from.is_finite() && from != p {
+                if let Some((_, tri)) = self.first_crossing(from, p) {
+                    let tri = &self.tris[tri];
+                    if tri.normal.dot(from - tri.a) > 0.0 {
+                        return Some(SurfacePoint {
+                            distance: tri.normal.dot(p - tri.a),
+                            normal: tri.normal,
+                        });
+                    }
+                }
+            }
             return self.contact_closed(p, reach);
         }
         if from.is_finite() && from != p {
@@ -876,7 +894,7 @@ mod tests {
         for _ in 0..5000 {
             let p = rng.in_box(lo - 0.3, hi + 0.3);
             let expected = box_signed_distance(p, lo, hi);
-            let s = m.contact(p, DVec3::ZERO, f64::INFINITY).unwrap();
+            let s = m.contact(p, p, f64::INFINITY).unwrap();
             approx::assert_abs_diff_eq!(s.distance, expected, epsilon = 1e-12);
             // The normal points to the free side: stepping along it leaves the box.
             let out = p + s.normal * (s.distance.abs() + 1e-6);
@@ -887,16 +905,16 @@ mod tests {
         let (v, f) = cube(DVec3::ZERO, DVec3::ONE);
         let m = MeshCollider::new(v, f).unwrap();
         let face = m
-            .contact(DVec3::new(0.5, 1.0, 0.25), DVec3::ZERO, 0.0)
+            .contact(DVec3::new(0.5, 1.0, 0.25), DVec3::new(0.5, 1.0, 0.25), 0.0)
             .unwrap();
         assert_eq!(face.distance, 0.0);
         assert_close(face.normal, DVec3::Y, 1e-12);
         let edge = m
-            .contact(DVec3::new(1.0, 1.0, 0.5), DVec3::ZERO, 0.0)
+            .contact(DVec3::new(1.0, 1.0, 0.5), DVec3::new(1.0, 1.0, 0.5), 0.0)
             .unwrap();
         assert_eq!(edge.distance, 0.0);
         assert_close(edge.normal, DVec3::new(1.0, 1.0, 0.0).normalize(), 1e-12);
-        let corner = m.contact(DVec3::ONE, DVec3::ZERO, 0.0).unwrap();
+        let corner = m.contact(DVec3::ONE, DVec3::ONE, 0.0).unwrap();
         assert_eq!(corner.distance, 0.0);
         assert!(corner.normal.cmpgt(DVec3::ZERO).all(), "{}", corner.normal);
     }
@@ -1004,7 +1022,9 @@ mod tests {
             .collect();
         let welded = MeshCollider::new(split, split_tris).unwrap();
         assert!(welded.is_closed());
-        let s = welded.contact(DVec3::splat(0.5), DVec3::ZERO, 0.0).unwrap();
+        let s = welded
+            .contact(DVec3::splat(0.5), DVec3::splat(0.5), 0.0)
+            .unwrap();
         approx::assert_abs_diff_eq!(s.distance, -0.5, epsilon = 1e-12);
     }
 
@@ -1048,19 +1068,26 @@ mod tests {
         approx::assert_abs_diff_eq!(lo.y, 0.0, epsilon = 1e-9);
         approx::assert_abs_diff_eq!(hi.x - lo.x, 1.2, epsilon = 1e-9);
         approx::assert_abs_diff_eq!(hi.z - lo.z, 0.8, epsilon = 1e-9);
+        // Coming down from above and already past the top slab's middle: still pushed back up
+        // through the top it entered by.
+        let s = m
+            .contact(DVec3::new(0.1, 0.715, 0.1), DVec3::new(0.1, 0.8, 0.1), 0.05)
+            .unwrap();
+        approx::assert_abs_diff_eq!(s.distance, -0.035, epsilon = 1e-9);
+        assert_close(s.normal, DVec3::Y, 1e-9);
         // Resting on the top, 1 cm above, and inside the top slab.
         let s = m
-            .contact(DVec3::new(0.1, 0.76, 0.1), DVec3::ZERO, 0.05)
+            .contact(DVec3::new(0.1, 0.76, 0.1), DVec3::new(0.1, 0.76, 0.1), 0.05)
             .unwrap();
         approx::assert_abs_diff_eq!(s.distance, 0.01, epsilon = 1e-9);
         assert_close(s.normal, DVec3::Y, 1e-9);
         let s = m
-            .contact(DVec3::new(0.1, 0.74, 0.1), DVec3::ZERO, 0.05)
+            .contact(DVec3::new(0.1, 0.74, 0.1), DVec3::new(0.1, 0.74, 0.1), 0.05)
             .unwrap();
         approx::assert_abs_diff_eq!(s.distance, -0.01, epsilon = 1e-9);
         // Under the table, between the legs, far from everything: nothing.
         assert_eq!(
-            m.contact(DVec3::new(0.0, 0.3, 0.0), DVec3::ZERO, 0.05),
+            m.contact(DVec3::new(0.0, 0.3, 0.0), DVec3::new(0.0, 0.3, 0.0), 0.05),
             None
         );
 
