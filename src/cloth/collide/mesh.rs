@@ -662,6 +662,69 @@ fn topology(
     (closed, edge_normals, vertex_normals)
 }
 
+/// A closed unit icosphere subdivided `levels` times: 20·4^levels triangles wound outwards,
+/// vertices on the unit sphere (for tests and benchmarks of mesh colliders).
+pub fn icosphere(levels: usize) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<DVec3> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .map(|p| DVec3::from_array(p).normalize())
+    .to_vec();
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut mids: std::collections::BTreeMap<(u32, u32), u32> = Default::default();
+        let mut mid = |a: u32, b: u32, v: &mut Vec<DVec3>| {
+            *mids.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                v.push(((v[a as usize] + v[b as usize]) * 0.5).normalize());
+                v.len() as u32 - 1
+            })
+        };
+        f = f
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let ab = mid(a, b, &mut v);
+                let bc = mid(b, c, &mut v);
+                let ca = mid(c, a, &mut v);
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    (v, f)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -705,68 +768,6 @@ mod tests {
             .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
             .collect();
         (positions, triangles)
-    }
-
-    /// A unit icosphere subdivided `levels` times (20·4^levels outward triangles).
-    fn icosphere(levels: usize) -> (Vec<DVec3>, Vec<[u32; 3]>) {
-        let t = (1.0 + 5f64.sqrt()) / 2.0;
-        let mut v: Vec<DVec3> = [
-            [-1.0, t, 0.0],
-            [1.0, t, 0.0],
-            [-1.0, -t, 0.0],
-            [1.0, -t, 0.0],
-            [0.0, -1.0, t],
-            [0.0, 1.0, t],
-            [0.0, -1.0, -t],
-            [0.0, 1.0, -t],
-            [t, 0.0, -1.0],
-            [t, 0.0, 1.0],
-            [-t, 0.0, -1.0],
-            [-t, 0.0, 1.0],
-        ]
-        .map(|p| DVec3::from_array(p).normalize())
-        .to_vec();
-        let mut f: Vec<[u32; 3]> = vec![
-            [0, 11, 5],
-            [0, 5, 1],
-            [0, 1, 7],
-            [0, 7, 10],
-            [0, 10, 11],
-            [1, 5, 9],
-            [5, 11, 4],
-            [11, 10, 2],
-            [10, 7, 6],
-            [7, 1, 8],
-            [3, 9, 4],
-            [3, 4, 2],
-            [3, 2, 6],
-            [3, 6, 8],
-            [3, 8, 9],
-            [4, 9, 5],
-            [2, 4, 11],
-            [6, 2, 10],
-            [8, 6, 7],
-            [9, 8, 1],
-        ];
-        for _ in 0..levels {
-            let mut mids: std::collections::BTreeMap<(u32, u32), u32> = Default::default();
-            let mut mid = |a: u32, b: u32, v: &mut Vec<DVec3>| {
-                *mids.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                    v.push(((v[a as usize] + v[b as usize]) * 0.5).normalize());
-                    v.len() as u32 - 1
-                })
-            };
-            f = f
-                .iter()
-                .flat_map(|&[a, b, c]| {
-                    let ab = mid(a, b, &mut v);
-                    let bc = mid(b, c, &mut v);
-                    let ca = mid(c, a, &mut v);
-                    [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-                })
-                .collect();
-        }
-        (v, f)
     }
 
     /// A unit square in y = 0 (x, z in [0, 1]), normal +y, two triangles.
