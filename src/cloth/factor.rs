@@ -879,9 +879,12 @@ mod tests {
         }
     }
 
+    type Triplets = Vec<(usize, usize, f64)>;
+
     /// A random sparse SPD matrix (random graph, random weights, diagonally dominant by a
     /// random margin) in AMD order, and its dense copy.
-    fn random_spd(n: usize, seed: u64) -> (Vec<(usize, usize, f64)>, Vec<Vec<f64>>) {
+    #[allow(clippy::needless_range_loop)]
+    fn random_spd(n: usize, seed: u64) -> (Triplets, Vec<Vec<f64>>) {
         let mut state = seed;
         let mut random = move || {
             state ^= state << 13;
@@ -924,6 +927,7 @@ mod tests {
     }
 
     /// Dense Gaussian elimination with partial pivoting, the reference solve.
+    #[allow(clippy::needless_range_loop)]
     fn dense_solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
         let n = b.len();
         for c in 0..n {
@@ -950,6 +954,7 @@ mod tests {
     /// The f32 factor solves a random SPD system to f32 accuracy (both f32 and f64
     /// right-hand sides), and the f64 factor to f64 accuracy, against a dense solve.
     #[test]
+    #[allow(clippy::needless_range_loop)]
     fn f32_factor_solves_random_spd_systems_to_single_precision() {
         for seed in [1, 2, 3] {
             let n = 300;

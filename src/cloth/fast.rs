@@ -433,7 +433,7 @@ pub fn correction_rate(upper: &CsMat<f64>, factor: &GlobalFactor) -> f64 {
         symmetric_product(upper, &e, &mut ae);
         factor.solve4(&mut ae);
         for (e, z) in e.iter_mut().zip(&ae) {
-            *e = *e - *z;
+            *e -= *z;
         }
         let after = norm(&e);
         if before == 0.0 {
