@@ -109,7 +109,7 @@ pub struct FastSolver {
     res: Vec<Lanes4>,
     /// The scaled residual, then the scaled correction, in f32 (f32 factor only).
     delta: Vec<Lanes4f>,
-    /// The per-lane powers of two `delta` is scaled by (dimensionless per kg·m).
+    /// The per-lane powers of two `res` is scaled by before rounding into `delta`, 1/(kg·m).
     scale: [f64; 4],
     /// Positions at the start of the step (m).
     x0: Vec<DVec3>,
@@ -484,7 +484,9 @@ impl StepSolver for FastSolver {
                 }
             }
             self.global_step();
-            // `pos` is the new iterate here (y and x0 unchanged since the start of the step).
+            // `pos` holds the new iterate here (m, solver order, padded lanes: keep lane 3 zero,
+            // the spring kernel's lengths include it); `y` is the step's inertial target and
+            // `x0` its start, both unchanged. A projection of `pos` (e.g. contacts) goes here.
         }
         // One more residual measures how far the last iterate is from stationary.
         self.residual_step();
