@@ -8,8 +8,12 @@
 //! Per scene:
 //! - `fast/factor`: `FastSolver::new` (assembly, symbolic analysis, numeric factor of the n×n
 //!   matrix);
-//! - `fast/solve3`, `fast/solve4`: one global step (both triangular sweeps, three right-hand
-//!   sides) on `DVec3` and on the padded layout the solver uses;
+//! - `fast/solve3`, `fast/solve4`: both triangular sweeps (three right-hand sides) with the
+//!   exact f64 factor, on `DVec3` and on padded `Lanes4` (the solver's global step before the f32
+//!   factor);
+//! - `fast/solve4f`: the sweeps the solver's global step uses (f32 factor and f32 lanes when it
+//!   picked them, see `FastSolver::new`); solve4 and solve4f copy a fresh right-hand side first
+//!   (≈ 10 µs at 100×100), since repeated in-place solves decay towards zero;
 //! - `fast/step_1`, `fast/step_10`: a whole time step with 1 and 10 local/global iterations; one
 //!   iteration costs (step_10 − step_1)/9, and step_10 is the default frame;
 //! - `newton/factor`: Hessian assembly plus numeric refactorisation of the 3n×3n matrix (what
@@ -27,7 +31,8 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::DVec3;
-use scenebake::cloth::factor::Lanes4;
+use scenebake::cloth::factor::{Cholesky, Lanes4, Lanes4f};
+use scenebake::cloth::fast::GlobalFactor;
 use scenebake::cloth::model::masses_from_area;
 use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::preset::{defaults, lab_cloth};
@@ -121,16 +126,26 @@ fn bench_scene(c: &mut Criterion, scene: &Scene) {
         let (mut xf, mut vf) = (x.clone(), v.clone());
         let fs = f.step(&mut xf, &mut vf).unwrap();
         eprintln!(
-            "{name}: {} free particles, {} springs, {} anchors; fast factor nnz {}; Newton Hessian \
-             nnz {}, factor nnz {} ({}); Newton step: {} iterations, residual {:.1e}; fast 10 \
-             iterations: residual {:.1e}",
+            "{name}: {} free particles, {} springs, {} anchors; fast factor nnz {} ({}, rate \
+             {:.1e}); Newton Hessian nnz {}, factor nnz {} ({}); Newton step: {} iterations, \
+             residual {:.1e}; fast 10 iterations: residual {:.1e}",
             sys.len(),
             sys.springs.a.len(),
             sys.anchors.a.len(),
             fast.factor().nnz(),
+            if fast.factor().is_single() {
+                "f32"
+            } else {
+                "f64"
+            },
+            fast.factor_rate(),
             newton.hessian_nnz(),
             newton.factor_nnz(),
-            if newton.is_supernodal() { "supernodal" } else { "simplicial" },
+            if newton.is_supernodal() {
+                "supernodal"
+            } else {
+                "simplicial"
+            },
             stats.iterations,
             stats.residual,
             fs.residual,
@@ -144,18 +159,34 @@ fn bench_scene(c: &mut Criterion, scene: &Scene) {
     g.bench_function("fast/factor", |b| {
         b.iter(|| FastSolver::new(black_box(sys.clone()), 10).unwrap())
     });
+    let exact = Cholesky::new(&FastSolver::matrix(sys)).unwrap();
     let mut rhs = x.clone();
     g.bench_function("fast/solve3", |b| {
         b.iter(|| {
-            fast.factor().solve3(black_box(&mut rhs));
+            exact.solve3(black_box(&mut rhs));
         })
     });
-    let mut rhs4: Vec<Lanes4> = x.iter().map(|p| Lanes4::from_vec3(*p)).collect();
+    let src4: Vec<Lanes4> = x.iter().map(|p| Lanes4::from_vec3(*p)).collect();
+    let mut rhs4 = src4.clone();
     g.bench_function("fast/solve4", |b| {
         b.iter(|| {
-            fast.factor().solve4(black_box(&mut rhs4));
+            rhs4.copy_from_slice(&src4);
+            exact.solve4(black_box(&mut rhs4));
         })
     });
+    match fast.factor() {
+        GlobalFactor::Single(f) => {
+            let src: Vec<Lanes4f> = src4.iter().map(|p| Lanes4f::from_lanes4(*p)).collect();
+            let mut rhs = src.clone();
+            g.bench_function("fast/solve4f", |b| {
+                b.iter(|| {
+                    rhs.copy_from_slice(&src);
+                    f.solve4f(black_box(&mut rhs));
+                })
+            });
+        }
+        GlobalFactor::Double(_) => eprintln!("{name}: the solver keeps the f64 factor"),
+    }
     for k in [1, 10] {
         let mut solver = FastSolver::new(sys.clone(), k).unwrap();
         let (mut xs, mut vs) = (x.clone(), v.clone());

@@ -27,8 +27,11 @@ use crate::error::{Error, Result};
 /// contiguous values per pattern row. The diagonal is kept apart as 1/L[j, j]. Every row index is
 /// below the supernode's last column and every value slice lies inside `values` (checked at
 /// construction).
+///
+/// `V` is the type the values are stored in: `f64` (the default, exact to roundoff) or `f32`
+/// ([`Cholesky::to_f32`]: half the memory traffic of the sweeps, for use as a preconditioner).
 #[derive(Debug, Clone)]
-pub struct Cholesky {
+pub struct Cholesky<V: FactorValue = f64> {
     /// First column of each supernode, plus n (length S + 1).
     sn_col: Vec<u32>,
     /// Start of each supernode's pattern in `rows` (length S + 1).
@@ -38,9 +41,37 @@ pub struct Cholesky {
     /// Start of each supernode's values in `values` (length S + 1).
     sn_val: Vec<usize>,
     /// Strictly-lower values, per supernode as described above.
-    values: Vec<f64>,
+    values: Vec<V>,
     /// 1 / L[j, j].
-    inv_diagonal: Vec<f64>,
+    inv_diagonal: Vec<V>,
+}
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for f64 {}
+    impl Sealed for f32 {}
+}
+
+/// The scalar types a [`Cholesky`] factor's values can be stored in: `f64` or `f32`.
+pub trait FactorValue:
+    Copy + Default + PartialEq + std::fmt::Debug + Send + Sync + 'static + sealed::Sealed
+{
+    /// `v` rounded to this type.
+    fn from_f64(v: f64) -> Self;
+}
+
+impl FactorValue for f64 {
+    #[inline(always)]
+    fn from_f64(v: f64) -> Self {
+        v
+    }
+}
+
+impl FactorValue for f32 {
+    #[inline(always)]
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
 }
 
 /// Symmetric matrix from upper-triangle triplets (row ≤ col); duplicates are summed.
@@ -105,7 +136,10 @@ fn supernodal() -> CholeskySymbolicParams<'static> {
     }
 }
 
-impl Cholesky {
+/// [`Cholesky::to_f32`] drops values below this fraction of the factor's largest entry.
+pub const DROP_RELATIVE: f64 = 1e-12;
+
+impl Cholesky<f64> {
     /// Factors the symmetric positive-definite matrix whose upper triangle is `upper`, in the
     /// given order (no reordering).
     ///
@@ -184,6 +218,58 @@ impl Cholesky {
         Ok(f)
     }
 
+    /// The same factor with its values rounded to `f32`: L̃ with L̃·L̃ᵀ = A + E, |E| of the order
+    /// of 1e-7·|L|·|Lᵀ|. Not a solver on its own for ill-conditioned A; use it to solve for
+    /// corrections (x ← x + Ã⁻¹(b − A·x), with the residual in f64).
+    pub fn to_f32(&self) -> Cholesky<f32> {
+        self.to_f32_dropping(DROP_RELATIVE)
+    }
+
+    /// [`Cholesky::to_f32`] dropping every value below `relative` × the factor's largest entry
+    /// (diagonal included), and every pattern row of a supernode left without values: a cheaper,
+    /// incomplete factor. Dropped entries change Ã by at most a few of them per entry of A.
+    pub fn to_f32_dropping(&self, relative: f64) -> Cholesky<f32> {
+        // The lab grids' factors decay to 1e-40 and below away from the diagonal: kept, those
+        // values would be subnormal in f32, and subnormal operands or products cost a microcode
+        // assist per multiply-add on x86; and whole rows of them are traffic for nothing.
+        let largest = self.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let largest = self
+            .inv_diagonal
+            .iter()
+            .fold(largest, |m, d| m.max(1.0 / d));
+        let drop_below = largest * relative;
+        let round = |v: f64| if v.abs() < drop_below { 0.0 } else { v as f32 };
+        let supernodes = self.supernodes();
+        let mut f = Cholesky {
+            sn_col: self.sn_col.clone(),
+            sn_row: Vec::with_capacity(supernodes + 1),
+            rows: Vec::new(),
+            sn_val: Vec::with_capacity(supernodes + 1),
+            values: Vec::new(),
+            inv_diagonal: self.inv_diagonal.iter().map(|&v| v as f32).collect(),
+        };
+        for s in 0..supernodes {
+            let w = (self.sn_col[s + 1] - self.sn_col[s]) as usize;
+            let rows = &self.rows[self.sn_row[s] as usize..self.sn_row[s + 1] as usize];
+            let vals = &self.values[self.sn_val[s]..self.sn_val[s + 1]];
+            let (tri, below) = vals.split_at(w * (w - 1) / 2);
+            f.sn_row.push(f.rows.len() as u32);
+            f.sn_val.push(f.values.len());
+            f.values.extend(tri.iter().map(|&v| round(v)));
+            for (&r, l) in rows.iter().zip(below.chunks_exact(w)) {
+                if l.iter().any(|v| v.abs() >= drop_below) {
+                    f.rows.push(r);
+                    f.values.extend(l.iter().map(|&v| round(v)));
+                }
+            }
+        }
+        f.sn_row.push(f.rows.len() as u32);
+        f.sn_val.push(f.values.len());
+        f
+    }
+}
+
+impl<V: FactorValue> Cholesky<V> {
     /// Size n of the factored matrix.
     pub fn dimension(&self) -> usize {
         self.inv_diagonal.len()
@@ -194,49 +280,20 @@ impl Cholesky {
         self.values.len() + self.inv_diagonal.len()
     }
 
+    /// Stored off-diagonal values (for diagnostics).
+    pub fn values(&self) -> &[V] {
+        &self.values
+    }
+
     /// Number of supernodes.
     pub fn supernodes(&self) -> usize {
         self.sn_col.len() - 1
     }
 
-    /// Solves A·X = B in place for three right-hand sides at once (the x, y and z columns of
-    /// `b`). No allocation.
-    ///
-    /// # Panics
-    /// When `b.len()` differs from [`Cholesky::dimension`].
-    pub fn solve3(&self, b: &mut [DVec3]) {
-        assert_eq!(b.len(), self.dimension(), "right-hand side length");
-        self.sweeps(b);
-    }
-
-    /// [`Cholesky::solve3`] on right-hand sides padded to four lanes (the fourth is solved too,
-    /// so keep it zero or use it as a fourth column). Faster: every update is one 4-wide
-    /// multiply-add, and on x86-64 CPUs with AVX2 and FMA (detected at run time) a 256-bit one.
-    ///
-    /// # Panics
-    /// When `b.len()` differs from [`Cholesky::dimension`].
-    pub fn solve4(&self, b: &mut [Lanes4]) {
-        assert_eq!(b.len(), self.dimension(), "right-hand side length");
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the CPU supports the features `sweeps_avx2` is compiled for.
-            unsafe { self.sweeps_avx2(b) };
-            return;
-        }
-        self.sweeps(b);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn sweeps_avx2(&self, b: &mut [Lanes4]) {
-        self.sweeps(b);
-    }
-
     /// Forward then backward substitution, supernode by supernode. Inlined into each caller so
     /// that it is compiled for the caller's target features.
     #[inline(always)]
-    fn sweeps<T: Lanes>(&self, b: &mut [T]) {
+    fn sweeps<T: Lanes<V>>(&self, b: &mut [T]) {
         let supernodes = self.supernodes();
         // Forward: L·Y = B.
         for s in 0..supernodes {
@@ -253,14 +310,14 @@ impl Cholesky {
                 let row = &tri[t..t + i];
                 t += i;
                 let acc = y[i] - dot(row, &y[..i]);
-                y[i] = acc * inv[i];
+                y[i] = acc.scale(inv[i]).flush();
             }
             let y = &*y;
             match w {
-                1 => forward_rows::<T, 1>(rows, below, y, tail, c1),
-                2 => forward_rows::<T, 2>(rows, below, y, tail, c1),
-                3 => forward_rows::<T, 3>(rows, below, y, tail, c1),
-                4 => forward_rows::<T, 4>(rows, below, y, tail, c1),
+                1 => forward_rows::<V, T, 1>(rows, below, y, tail, c1),
+                2 => forward_rows::<V, T, 2>(rows, below, y, tail, c1),
+                3 => forward_rows::<V, T, 3>(rows, below, y, tail, c1),
+                4 => forward_rows::<V, T, 4>(rows, below, y, tail, c1),
                 _ => {
                     for (&r, l) in rows.iter().zip(below.chunks_exact(w)) {
                         tail[r as usize - c1] -= dot(l, y);
@@ -278,10 +335,10 @@ impl Cholesky {
             let (head, tail) = b.split_at_mut(c1);
             let x = &mut head[c0..];
             match w {
-                1 => backward_rows::<T, 1>(rows, below, x, tail, c1),
-                2 => backward_rows::<T, 2>(rows, below, x, tail, c1),
-                3 => backward_rows::<T, 3>(rows, below, x, tail, c1),
-                4 => backward_rows::<T, 4>(rows, below, x, tail, c1),
+                1 => backward_rows::<V, T, 1>(rows, below, x, tail, c1),
+                2 => backward_rows::<V, T, 2>(rows, below, x, tail, c1),
+                3 => backward_rows::<V, T, 3>(rows, below, x, tail, c1),
+                4 => backward_rows::<V, T, 4>(rows, below, x, tail, c1),
                 _ => {
                     // Four columns at a time, accumulating in registers (no stores in the
                     // inner loop); each pass re-reads the pattern rows, which are in cache.
@@ -291,16 +348,16 @@ impl Cholesky {
                         // Two sets of accumulators (even and odd rows): eight independent
                         // multiply-add chains hide the latency.
                         let mut acc = *xs;
-                        let mut odd = [T::ZERO; 4];
+                        let mut odd = [<T as Lanes<V>>::ZERO; 4];
                         let pairs = rows.len() / 2;
                         for k2 in 0..pairs {
                             let k = 2 * k2;
                             let (xa, xb) =
                                 (tail[rows[k] as usize - c1], tail[rows[k + 1] as usize - c1]);
-                            let la: &[f64; 4] = below[k * w + j0..k * w + j0 + 4]
+                            let la: &[V; 4] = below[k * w + j0..k * w + j0 + 4]
                                 .try_into()
                                 .expect("4 values");
-                            let lb: &[f64; 4] = below[(k + 1) * w + j0..(k + 1) * w + j0 + 4]
+                            let lb: &[V; 4] = below[(k + 1) * w + j0..(k + 1) * w + j0 + 4]
                                 .try_into()
                                 .expect("4 values");
                             for jj in 0..4 {
@@ -334,7 +391,7 @@ impl Cholesky {
             // i(i−1)/2 in `tri`).
             let inv = &self.inv_diagonal[c0..c1];
             for j in (0..w).rev() {
-                let (mut acc, mut odd) = (x[j], T::ZERO);
+                let (mut acc, mut odd) = (x[j], <T as Lanes<V>>::ZERO);
                 let mut at = (j + 1) * j / 2 + j;
                 let mut i = j + 1;
                 while i + 1 < w {
@@ -347,31 +404,132 @@ impl Cholesky {
                     acc = acc.mul_add(-x[i], tri[at]);
                 }
                 acc += odd;
-                x[j] = acc * inv[j];
+                x[j] = acc.scale(inv[j]).flush();
             }
         }
     }
 }
 
-/// Right-hand-side element types of the triangular sweeps: small vectors of f64.
-trait Lanes:
+/// The public sweeps for one value type `$v` (the private `Lanes` bounds stay private).
+macro_rules! solves {
+    ($v:ty) => {
+        impl Cholesky<$v> {
+            /// Solves A·X = B in place for three right-hand sides at once (the x, y and z columns of
+            /// `b`). No allocation.
+            ///
+            /// # Panics
+            /// When `b.len()` differs from [`Cholesky::dimension`].
+            pub fn solve3(&self, b: &mut [DVec3]) {
+                assert_eq!(b.len(), self.dimension(), "right-hand side length");
+                self.sweeps::<_>(b);
+            }
+
+            /// [`Cholesky::solve3`] on right-hand sides padded to four lanes (the fourth is solved too,
+            /// so keep it zero or use it as a fourth column). Faster: every update is one 4-wide
+            /// multiply-add, and on x86-64 CPUs with AVX2 and FMA (detected at run time) a 256-bit one.
+            ///
+            /// # Panics
+            /// When `b.len()` differs from [`Cholesky::dimension`].
+            pub fn solve4(&self, b: &mut [Lanes4]) {
+                assert_eq!(b.len(), self.dimension(), "right-hand side length");
+                #[cfg(target_arch = "x86_64")]
+                if std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+                {
+                    // SAFETY: the CPU supports the features `sweeps_avx2` is compiled for.
+                    unsafe { self.sweeps_avx2(b) };
+                    return;
+                }
+                self.sweeps::<_>(b);
+            }
+
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2,fma")]
+            fn sweeps_avx2(&self, b: &mut [Lanes4]) {
+                self.sweeps::<_>(b);
+            }
+        }
+    };
+}
+solves!(f64);
+solves!(f32);
+
+impl Cholesky<f32> {
+    /// Solves Ã·X = B in place with f32 right-hand sides too: every update is one 128-bit
+    /// multiply-add, and half the bytes of [`Cholesky::solve4`] move per sweep. For corrections
+    /// (right-hand sides whose relative accuracy is what matters), not for positions. Scale B to
+    /// order 1: solved components below [`FLUSH_BELOW`] are set to zero.
+    ///
+    /// # Panics
+    /// When `b.len()` differs from [`Cholesky::dimension`].
+    pub fn solve4f(&self, b: &mut [Lanes4f]) {
+        assert_eq!(b.len(), self.dimension(), "right-hand side length");
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the CPU supports the features `sweeps4f_avx2` is compiled for.
+            unsafe { self.sweeps4f_avx2(b) };
+            return;
+        }
+        self.sweeps(b);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn sweeps4f_avx2(&self, b: &mut [Lanes4f]) {
+        self.sweeps(b);
+    }
+}
+
+/// Right-hand-side element types of the triangular sweeps over factor values of type `V`:
+/// small vectors of f64 or f32.
+trait Lanes<V>:
     Copy
     + std::ops::Sub<Output = Self>
     + std::ops::Neg<Output = Self>
-    + std::ops::Mul<f64, Output = Self>
     + std::ops::AddAssign
     + std::ops::SubAssign
 {
     const ZERO: Self;
     /// self + a·l
-    fn mul_add(self, a: Self, l: f64) -> Self;
+    fn mul_add(self, a: Self, l: V) -> Self;
+    /// self·l
+    fn scale(self, l: V) -> Self;
+    /// Self with negligible components set to zero (f32 lanes: |v| < [`FLUSH_BELOW`]), applied
+    /// to every solved unknown, so that decaying solutions do not go subnormal.
+    #[inline(always)]
+    fn flush(self) -> Self {
+        self
+    }
 }
 
-impl Lanes for DVec3 {
+/// [`Cholesky::solve4f`] sets solved components below this magnitude to zero: far below f32's
+/// resolution of an order-1 right-hand side, and far enough above f32's smallest normal number
+/// (1.2e-38) that products with the factor's values stay normal (subnormal operands and results
+/// cost a microcode assist per multiply-add on x86).
+pub const FLUSH_BELOW: f32 = 1e-25;
+
+impl Lanes<f64> for DVec3 {
     const ZERO: Self = DVec3::ZERO;
     #[inline(always)]
     fn mul_add(self, a: Self, l: f64) -> Self {
         self + a * l
+    }
+    #[inline(always)]
+    fn scale(self, l: f64) -> Self {
+        self * l
+    }
+}
+
+impl Lanes<f32> for DVec3 {
+    const ZERO: Self = DVec3::ZERO;
+    #[inline(always)]
+    fn mul_add(self, a: Self, l: f32) -> Self {
+        self + a * f64::from(l)
+    }
+    #[inline(always)]
+    fn scale(self, l: f32) -> Self {
+        self * f64::from(l)
     }
 }
 
@@ -408,6 +566,7 @@ macro_rules! lanewise {
 }
 lanewise!(Add, add, +);
 lanewise!(Sub, sub, -);
+lanewise!(Mul, mul, *);
 
 impl std::ops::Mul<f64> for Lanes4 {
     type Output = Self;
@@ -439,27 +598,111 @@ impl std::ops::SubAssign for Lanes4 {
     }
 }
 
-impl Lanes for Lanes4 {
+impl Lanes<f64> for Lanes4 {
     const ZERO: Self = Lanes4([0.0; 4]);
     #[inline(always)]
     fn mul_add(self, a: Self, l: f64) -> Self {
         // `mul_add` becomes one fused instruction where FMA is enabled (and is exact either way).
         Lanes4(std::array::from_fn(|k| a.0[k].mul_add(l, self.0[k])))
     }
+    #[inline(always)]
+    fn scale(self, l: f64) -> Self {
+        self * l
+    }
+}
+
+/// f64 right-hand sides over f32 factor values (each value widened once per use).
+impl Lanes<f32> for Lanes4 {
+    const ZERO: Self = Lanes4([0.0; 4]);
+    #[inline(always)]
+    fn mul_add(self, a: Self, l: f32) -> Self {
+        let l = f64::from(l);
+        Lanes4(std::array::from_fn(|k| a.0[k].mul_add(l, self.0[k])))
+    }
+    #[inline(always)]
+    fn scale(self, l: f32) -> Self {
+        self * f64::from(l)
+    }
+}
+
+/// Four f32 lanes aligned to 16 bytes (one 128-bit vector): a right-hand side of
+/// [`Cholesky::solve4f`] (x, y, z and a spare lane).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[repr(C, align(16))]
+pub struct Lanes4f(pub [f32; 4]);
+
+impl Lanes4f {
+    /// The first three lanes of `v`, rounded to f32 (the fourth is 0).
+    #[inline(always)]
+    pub fn from_lanes4(v: Lanes4) -> Self {
+        Lanes4f([v.0[0] as f32, v.0[1] as f32, v.0[2] as f32, 0.0])
+    }
+
+    /// The four lanes widened to f64.
+    #[inline(always)]
+    pub fn to_lanes4(self) -> Lanes4 {
+        Lanes4(self.0.map(f64::from))
+    }
+}
+
+impl std::ops::Sub for Lanes4f {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Lanes4f(std::array::from_fn(|k| self.0[k] - o.0[k]))
+    }
+}
+
+impl std::ops::Neg for Lanes4f {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Lanes4f(self.0.map(|v| -v))
+    }
+}
+
+impl std::ops::AddAssign for Lanes4f {
+    #[inline(always)]
+    fn add_assign(&mut self, o: Self) {
+        *self = Lanes4f(std::array::from_fn(|k| self.0[k] + o.0[k]));
+    }
+}
+
+impl std::ops::SubAssign for Lanes4f {
+    #[inline(always)]
+    fn sub_assign(&mut self, o: Self) {
+        *self = *self - o;
+    }
+}
+
+impl Lanes<f32> for Lanes4f {
+    const ZERO: Self = Lanes4f([0.0; 4]);
+    #[inline(always)]
+    fn mul_add(self, a: Self, l: f32) -> Self {
+        Lanes4f(std::array::from_fn(|k| a.0[k].mul_add(l, self.0[k])))
+    }
+    #[inline(always)]
+    fn scale(self, l: f32) -> Self {
+        Lanes4f(self.0.map(|v| v * l))
+    }
+    #[inline(always)]
+    fn flush(self) -> Self {
+        Lanes4f(self.0.map(|v| if v.abs() < FLUSH_BELOW { 0.0 } else { v }))
+    }
 }
 
 /// The forward update of a supernode of width W: tail[r − c1] −= Σ_j L[r, j]·y[j] per pattern row.
 #[inline(always)]
-fn forward_rows<T: Lanes, const W: usize>(
+fn forward_rows<V: Copy, T: Lanes<V>, const W: usize>(
     rows: &[u32],
-    below: &[f64],
+    below: &[V],
     y: &[T],
     tail: &mut [T],
     c1: usize,
 ) {
     let y: &[T; W] = y.try_into().expect("supernode width");
     for (&r, l) in rows.iter().zip(below.chunks_exact(W)) {
-        let mut acc = T::ZERO;
+        let mut acc = <T as Lanes<V>>::ZERO;
         for j in 0..W {
             acc = acc.mul_add(y[j], l[j]);
         }
@@ -469,9 +712,9 @@ fn forward_rows<T: Lanes, const W: usize>(
 
 /// The backward update of a supernode of width W: x[j] −= Σ_r L[r, j]·x[r].
 #[inline(always)]
-fn backward_rows<T: Lanes, const W: usize>(
+fn backward_rows<V: Copy, T: Lanes<V>, const W: usize>(
     rows: &[u32],
-    below: &[f64],
+    below: &[V],
     x: &mut [T],
     tail: &[T],
     c1: usize,
@@ -489,8 +732,8 @@ fn backward_rows<T: Lanes, const W: usize>(
 
 /// Σ l[j]·y[j], four accumulators to hide the multiply-add latency.
 #[inline(always)]
-fn dot<T: Lanes>(l: &[f64], y: &[T]) -> T {
-    let mut acc = [T::ZERO; 4];
+fn dot<V: Copy, T: Lanes<V>>(l: &[V], y: &[T]) -> T {
+    let mut acc = [<T as Lanes<V>>::ZERO; 4];
     let (l4, y4) = (l.chunks_exact(4), y.chunks_exact(4));
     let (lr, yr) = (l4.remainder(), y4.remainder());
     for (l, y) in l4.zip(y4) {
@@ -634,6 +877,154 @@ mod tests {
             assert!((got4.xyz() - *want).length() < 1e-12, "{got4:?} vs {want}");
             assert_eq!(got4.0[3], 0.0, "the spare lane stays zero");
         }
+    }
+
+    type Triplets = Vec<(usize, usize, f64)>;
+
+    /// A random sparse SPD matrix (random graph, random weights, diagonally dominant by a
+    /// random margin) in AMD order, and its dense copy.
+    #[allow(clippy::needless_range_loop)]
+    fn random_spd(n: usize, seed: u64) -> (Triplets, Vec<Vec<f64>>) {
+        let mut state = seed;
+        let mut random = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut pairs = Vec::new();
+        for i in 0..n {
+            for _ in 0..3 {
+                let j = (random() * n as f64) as usize % n;
+                if j != i {
+                    pairs.push((i.min(j), i.max(j)));
+                }
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        let order = fill_reducing_order(n, pairs.iter().copied()).unwrap();
+        let mut new_of_old = vec![0usize; n];
+        for (new, &old) in order.iter().enumerate() {
+            new_of_old[old as usize] = new;
+        }
+        let mut dense = vec![vec![0.0; n]; n];
+        let mut trip = Vec::new();
+        for &(a, b) in &pairs {
+            let (a, b) = (new_of_old[a], new_of_old[b]);
+            let w = -(0.1 + random());
+            trip.push((a.min(b), a.max(b), w));
+            dense[a][b] += w;
+            dense[b][a] += w;
+        }
+        for i in 0..n {
+            let off: f64 = dense[i].iter().map(|v: &f64| v.abs()).sum();
+            let d = off + 0.01 + random();
+            trip.push((i, i, d));
+            dense[i][i] += d;
+        }
+        (trip, dense)
+    }
+
+    /// Dense Gaussian elimination with partial pivoting, the reference solve.
+    #[allow(clippy::needless_range_loop)]
+    fn dense_solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
+        let n = b.len();
+        for c in 0..n {
+            let p = (c..n)
+                .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
+                .unwrap();
+            a.swap(c, p);
+            b.swap(c, p);
+            for r in c + 1..n {
+                let f = a[r][c] / a[c][c];
+                for k in c..n {
+                    a[r][k] -= f * a[c][k];
+                }
+                b[r] -= f * b[c];
+            }
+        }
+        for c in (0..n).rev() {
+            let s: f64 = (c + 1..n).map(|k| a[c][k] * b[k]).sum();
+            b[c] = (b[c] - s) / a[c][c];
+        }
+        b
+    }
+
+    /// The f32 factor solves a random SPD system to f32 accuracy (both f32 and f64
+    /// right-hand sides), and the f64 factor to f64 accuracy, against a dense solve.
+    #[test]
+    #[allow(clippy::needless_range_loop)]
+    fn f32_factor_solves_random_spd_systems_to_single_precision() {
+        for seed in [1, 2, 3] {
+            let n = 300;
+            let (trip, dense) = random_spd(n, 0x1234_5678 + seed);
+            let f = Cholesky::new(&upper_from_triplets(n, &trip)).unwrap();
+            let f32f = f.to_f32();
+            let cols: [Vec<f64>; 3] = std::array::from_fn(|k| {
+                (0..n)
+                    .map(|i| ((i * (k + 2)) as f64 * 0.37).sin())
+                    .collect()
+            });
+            let want: Vec<Vec<f64>> = cols
+                .iter()
+                .map(|b| dense_solve(dense.clone(), b.clone()))
+                .collect();
+            let rhs: Vec<Lanes4> = (0..n)
+                .map(|i| Lanes4([cols[0][i], cols[1][i], cols[2][i], 0.0]))
+                .collect();
+            let (mut b64, mut bmixed) = (rhs.clone(), rhs.clone());
+            let mut b32: Vec<Lanes4f> = rhs.iter().map(|v| Lanes4f::from_lanes4(*v)).collect();
+            f.solve4(&mut b64);
+            f32f.solve4(&mut bmixed);
+            f32f.solve4f(&mut b32);
+            let scale = want.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+            for i in 0..n {
+                for k in 0..3 {
+                    let w = want[k][i];
+                    assert!((b64[i].0[k] - w).abs() < 1e-12 * scale, "f64 {i} {k}");
+                    assert!((bmixed[i].0[k] - w).abs() < 1e-5 * scale, "mixed {i} {k}");
+                    let e = (f64::from(b32[i].0[k]) - w).abs();
+                    assert!(e < 1e-5 * scale, "f32 {i} {k}: {e:e}");
+                }
+                assert_eq!(b32[i].0[3], 0.0, "the spare lane stays zero");
+            }
+        }
+    }
+
+    /// Dropping small values removes whole rows of the pattern and keeps the solve close; the
+    /// f32 sweep never produces subnormal numbers, even for a right-hand side at one node whose
+    /// solution decays over many orders of magnitude.
+    #[test]
+    fn dropping_shrinks_the_f32_factor_and_solutions_stay_normal() {
+        // A long, strongly diagonal path: L's fill (none) and solution decay ~ 1/10 per node.
+        let n = 400;
+        let mut trip: Vec<_> = (0..n).map(|i| (i, i, 10.0)).collect();
+        trip.extend((0..n - 1).map(|i| (i, i + 1, -1.0)));
+        trip.extend((0..n - 2).map(|i| (i, i + 2, -1e-9)));
+        let f = Cholesky::new(&upper_from_triplets(n, &trip)).unwrap();
+        let full = f.to_f32_dropping(0.0);
+        let dropped = f.to_f32_dropping(1e-6);
+        assert!(
+            dropped.nnz() < full.nnz(),
+            "{} < {}",
+            dropped.nnz(),
+            full.nnz()
+        );
+        assert!(dropped.rows.len() < full.rows.len());
+        let mut b = vec![Lanes4f::default(); n];
+        b[n / 2] = Lanes4f([1.0, -1.0, 0.5, 0.0]);
+        let mut b_full = b.clone();
+        dropped.solve4f(&mut b);
+        full.solve4f(&mut b_full);
+        for (got, want) in b.iter().zip(&b_full) {
+            for k in 0..4 {
+                assert!(!got.0[k].is_subnormal() && !want.0[k].is_subnormal());
+                assert!((got.0[k] - want.0[k]).abs() <= 1e-6, "{got:?} vs {want:?}");
+            }
+        }
+        let zeros = b.iter().filter(|v| v.0[0] == 0.0).count();
+        assert!(zeros > n / 2, "the decayed tail is flushed ({zeros} zeros)");
     }
 
     #[test]

@@ -2,63 +2,203 @@
 //! implicit Euler objective with a prefactored system matrix.
 //!
 //! With d_s = l_s (xa − xb)/|xa − xb| (local step, per spring) the objective becomes quadratic in
-//! x, and its minimiser solves the global step (s M + h² L) x = s M y + h² J d (+ anchor terms).
-//! The matrix is n×n (the same for x, y and z), constant during a bake, and factored once.
+//! x, and its minimiser solves the global step A x = b(x), A = s M + h² L, b = s M y + h² J d
+//! (+ anchor terms). The matrix is n×n (the same for x, y and z), constant during a bake, and
+//! factored once.
+//!
+//! The global step is taken as a correction: r = b(x) − A·x is evaluated in f64 together with the
+//! local step (r = −h²∇g(x), so its norm is also the convergence measure), Ã δ = r is solved with
+//! the factor stored in f32 (half the memory traffic of the triangular sweeps, which dominate an
+//! iteration), and x ← x + δ. With an exact factor this is the classic iteration x ← A⁻¹ b(x);
+//! with Ã ≈ A the fixed point is unchanged (r = 0 there, whatever Ã is) and the error Ã makes in
+//! δ shrinks with δ. Systems too ill-conditioned for an f32 factor keep an f64 one (see
+//! [`FastSolver::new`]).
+//!
+//! With colliders (see [`contact`]) the residual of a particle resting on one gets the collider's
+//! reaction and Coulomb friction, the held directions are filtered out of the correction (solved
+//! then by conjugate gradients preconditioned with Ã), and particles that entered a collider are
+//! moved back out after each correction.
 
 use glam::DVec3;
+use sprs::CsMat;
 
 use super::collide::contact::{self, Hold};
 use super::collide::Colliders;
-use super::factor::{upper_from_triplets, Cholesky, Lanes4};
+use super::factor::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
 use super::system::ReducedSystem;
 use super::{StepSolver, StepStats};
 use crate::error::Result;
 
+/// The f32 factor is used only when it contracts the error of the linear correction iteration
+/// x ← x + Ã⁻¹(b − A·x) by at least this factor per iteration (estimated at construction);
+/// otherwise the solver keeps the f64 factor.
+pub const MAX_SINGLE_RATE: f64 = 1e-3;
+
+/// Drop tolerances tried for the f32 factor, in order: values below this fraction of its
+/// largest entry are dropped (see [`Cholesky::to_f32_dropping`]); the first whose factor passes
+/// [`MAX_SINGLE_RATE`] is kept. The lab grids' factors lose 37 % (1e-6) or 27 % (1e-8) of their
+/// entries this way.
+pub const SINGLE_DROP_RELATIVE: [f64; 2] = [1e-6, 1e-8];
+
+/// The factor of the global step's matrix A = s·M + h²·L that a [`FastSolver`] solves with.
+#[derive(Debug, Clone)]
+pub enum GlobalFactor {
+    /// f32 values; corrections solved in f32 lanes ([`Cholesky::solve4f`]). The default.
+    Single(Cholesky<f32>),
+    /// f64 values, for systems whose f32 factor would slow the iteration down.
+    Double(Cholesky<f64>),
+}
+
+impl GlobalFactor {
+    /// Stored entries of the factor, diagonal included.
+    pub fn nnz(&self) -> usize {
+        match self {
+            GlobalFactor::Single(f) => f.nnz(),
+            GlobalFactor::Double(f) => f.nnz(),
+        }
+    }
+
+    /// Size n of the factored matrix.
+    pub fn dimension(&self) -> usize {
+        match self {
+            GlobalFactor::Single(f) => f.dimension(),
+            GlobalFactor::Double(f) => f.dimension(),
+        }
+    }
+
+    /// True for the f32 factor.
+    pub fn is_single(&self) -> bool {
+        matches!(self, GlobalFactor::Single(_))
+    }
+
+    /// Solves Ã·X = B in place for `DVec3` right-hand sides (see [`Cholesky::solve3`]).
+    pub fn solve3(&self, b: &mut [DVec3]) {
+        match self {
+            GlobalFactor::Single(f) => f.solve3(b),
+            GlobalFactor::Double(f) => f.solve3(b),
+        }
+    }
+
+    /// Solves Ã·X = B in place for padded f64 right-hand sides (see [`Cholesky::solve4`]).
+    pub fn solve4(&self, b: &mut [Lanes4]) {
+        match self {
+            GlobalFactor::Single(f) => f.solve4(b),
+            GlobalFactor::Double(f) => f.solve4(b),
+        }
+    }
+}
+
 /// Local/global solver with a fixed iteration count per step.
-///
-/// Each iteration is a correction x ← x + A⁻¹r with r = −h²∇g(x) (A = s·M + h²·L): the local step
-/// and the residual are one pass over the springs, and the fixed point is where the gradient
-/// vanishes, whatever the accuracy of the factor. With an exact factor this is the same iterate
-/// as the classic x ← A⁻¹b(x).
 #[derive(Debug)]
 pub struct FastSolver {
     sys: ReducedSystem,
-    factor: Cholesky,
+    factor: GlobalFactor,
+    /// Estimated contraction per iteration of the linear correction iteration with `factor`
+    /// (0 up to roundoff for an exact factor).
+    factor_rate: f64,
     iterations: usize,
     /// Both ends of each free spring (solver indices), packed for the local step.
     ends: Vec<[u32; 2]>,
-    /// h²·k·l and h²·k per free spring.
-    hkl_hk: Vec<[f64; 2]>,
-    /// h²·k per anchor.
+    /// h²·k·l per free spring, kg·m.
+    hkl: Vec<f64>,
+    /// h²·k per free spring, kg.
+    hk: Vec<f64>,
+    /// h²·k per anchor, kg.
     hk_anchor: Vec<f64>,
-    /// s·m per particle (the inertia part of A's diagonal).
+    /// s·m per particle, kg.
     sm: Vec<f64>,
-    /// s·M·y: the part of the residual that is constant in a step.
-    base: Vec<Lanes4>,
-    /// The current iterate's positions.
+    /// The current iterate's positions (m, solver order, lane 3 zero).
     pos: Vec<Lanes4>,
-    /// The residual r at `pos` (after the colliders' reactions).
+    /// The inertial target y (m, padded like `pos`).
+    y: Vec<Lanes4>,
+    /// The residual r = b(pos) − A·pos = −h²∇g(pos), kg·m; solved in place for the correction
+    /// when the factor is f64.
     res: Vec<Lanes4>,
-    /// The correction δ of the global step.
-    delta: Vec<Lanes4>,
-    /// Particles held by a collider in the global step, with how.
-    held: Vec<(u32, Hold)>,
-    /// Conjugate-gradient work vectors (used only while particles are held).
-    cg: [Vec<Lanes4>; 3],
-    y: Vec<DVec3>,
+    /// The scaled residual, then the scaled correction, in f32 (f32 factor only).
+    delta: Vec<Lanes4f>,
+    /// The per-lane powers of two `res` is scaled by before rounding into `delta`, 1/(kg·m).
+    scale: [f64; 4],
+    /// Positions at the start of the step (m).
     x0: Vec<DVec3>,
     /// Relative residual after each iteration of the last step, when recording.
     history: Option<Vec<f64>>,
     /// Colliders, when any (see [`contact`]).
     colliders: Option<Colliders>,
+    /// Particles held by a collider in the global step, with how.
+    held: Vec<(u32, Hold)>,
+    /// Work vectors of the held global step: residual, preconditioned residual, search
+    /// direction, correction (allocated with the colliders).
+    cg: [Vec<Lanes4>; 4],
 }
 
 impl FastSolver {
-    /// Builds the solver and factors s·M + h²·L.
+    /// Builds the solver and factors s·M + h²·L. The factor is stored in f32 (small values
+    /// dropped, [`SINGLE_DROP_RELATIVE`]) when the linear correction iteration with it contracts
+    /// by [`MAX_SINGLE_RATE`] or better per iteration (estimated here by three iterations on a
+    /// pseudo-random error, [`correction_rate`]), and in f64 otherwise.
     ///
     /// # Errors
     /// [`crate::Error::Factorisation`] when the matrix cannot be factored.
     pub fn new(sys: ReducedSystem, iterations: usize) -> Result<Self> {
+        let upper = Self::matrix(&sys);
+        let exact = Cholesky::new(&upper)?;
+        for drop in SINGLE_DROP_RELATIVE {
+            let single = GlobalFactor::Single(exact.to_f32_dropping(drop));
+            let rate = correction_rate(&upper, &single);
+            if rate <= MAX_SINGLE_RATE {
+                return Ok(Self::with_factor(sys, iterations, single, rate));
+            }
+        }
+        let exact = GlobalFactor::Double(exact);
+        let rate = correction_rate(&upper, &exact);
+        Ok(Self::with_factor(sys, iterations, exact, rate))
+    }
+
+    /// Builds the solver around a given factor of its matrix ([`FastSolver::matrix`]), e.g. to
+    /// compare precisions. `factor_rate` is what [`FastSolver::factor_rate`] reports.
+    ///
+    /// # Panics
+    /// When the factor's dimension is not the system's.
+    pub fn with_factor(
+        sys: ReducedSystem,
+        iterations: usize,
+        factor: GlobalFactor,
+        factor_rate: f64,
+    ) -> Self {
+        let n = sys.len();
+        assert_eq!(factor.dimension(), n, "factor dimension");
+        let sp = &sys.springs;
+        assert!(
+            sp.a.iter().chain(&sp.b).all(|&i| (i as usize) < n),
+            "spring ends index the free particles"
+        );
+        let h2 = sys.params.time_step.powi(2);
+        let s = sys.inertia_scale();
+        FastSolver {
+            ends: sp.a.iter().zip(&sp.b).map(|(&a, &b)| [a, b]).collect(),
+            hkl: sp.k.iter().zip(&sp.rest).map(|(k, l)| h2 * k * l).collect(),
+            hk: sp.k.iter().map(|k| h2 * k).collect(),
+            hk_anchor: sys.anchors.k.iter().map(|k| h2 * k).collect(),
+            sm: sys.mass.iter().map(|m| s * m).collect(),
+            pos: vec![Lanes4::default(); n],
+            y: vec![Lanes4::default(); n],
+            res: vec![Lanes4::default(); n],
+            delta: vec![Lanes4f::default(); if factor.is_single() { n } else { 0 }],
+            x0: vec![DVec3::ZERO; n],
+            scale: [1.0; 4],
+            history: None,
+            colliders: None,
+            held: Vec::new(),
+            cg: Default::default(),
+            factor,
+            factor_rate,
+            iterations,
+            sys,
+        }
+    }
+
+    /// The upper triangle of the global step's matrix A = s·M + h²·L (kg), solver order.
+    pub fn matrix(sys: &ReducedSystem) -> CsMat<f64> {
         let n = sys.len();
         let h2 = sys.params.time_step.powi(2);
         let s = sys.inertia_scale();
@@ -75,35 +215,13 @@ impl FastSolver {
         let an = &sys.anchors;
         triplets
             .extend((0..an.a.len()).map(|i| (an.a[i] as usize, an.a[i] as usize, h2 * an.k[i])));
-        let factor = Cholesky::new(&upper_from_triplets(n, &triplets))?;
-        Ok(FastSolver {
-            ends: sp.a.iter().zip(&sp.b).map(|(&a, &b)| [a, b]).collect(),
-            hkl_hk: sp
-                .k
-                .iter()
-                .zip(&sp.rest)
-                .map(|(k, l)| [h2 * k * l, h2 * k])
-                .collect(),
-            hk_anchor: an.k.iter().map(|k| h2 * k).collect(),
-            sm: sys.mass.iter().map(|m| s * m).collect(),
-            base: vec![Lanes4::default(); n],
-            pos: vec![Lanes4::default(); n],
-            res: vec![Lanes4::default(); n],
-            delta: vec![Lanes4::default(); n],
-            held: Vec::new(),
-            cg: std::array::from_fn(|_| vec![Lanes4::default(); n]),
-            y: vec![DVec3::ZERO; n],
-            x0: vec![DVec3::ZERO; n],
-            history: None,
-            colliders: None,
-            factor,
-            iterations,
-            sys,
-        })
+        upper_from_triplets(n, &triplets)
     }
 
     /// Adds colliders (see [`contact`]).
     pub fn with_colliders(mut self, colliders: Option<Colliders>) -> Self {
+        let n = if colliders.is_some() { self.sys.len() } else { 0 };
+        self.cg = std::array::from_fn(|_| vec![Lanes4::default(); n]);
         self.colliders = colliders;
         self
     }
@@ -120,36 +238,71 @@ impl FastSolver {
     }
 
     /// The factor (for reports and benchmarks).
-    pub fn factor(&self) -> &Cholesky {
+    pub fn factor(&self) -> &GlobalFactor {
         &self.factor
     }
 
-    /// Local step and residual in one pass: res = r(pos) = −h²∇g(pos) (newtons × s²).
-    fn residual(&mut self) {
+    /// The estimated contraction per iteration of the linear correction iteration with the
+    /// factor in use: how much the factor's rounding (and dropped values) slow an iteration down
+    /// at worst (dimensionless; about 1e-16 for the f64 factor).
+    pub fn factor_rate(&self) -> f64 {
+        self.factor_rate
+    }
+
+    /// ‖∇g(pos)‖ / force scale from the residual in `res`: ‖r‖ / h² / force scale.
+    fn relative_residual(&self) -> f64 {
+        let h2 = self.sys.params.time_step.powi(2);
+        let r2: f64 = self.res.iter().map(|r| r.xyz().length_squared()).sum();
+        r2.sqrt() / h2 / self.sys.force_scale()
+    }
+
+    /// The local step at `pos` folded into the residual: res = b(pos) − A·pos, that is
+    /// s·m·(y − x) per particle, h²k·(l/|d| − 1)·d per spring (d = xa − xb, added to a and
+    /// subtracted from b) and per anchor (d = xa − pin).
+    fn residual_step(&mut self) {
         let (x, r) = (&self.pos[..], &mut self.res[..]);
-        for (((r, b), x), sm) in r.iter_mut().zip(&self.base).zip(x).zip(&self.sm) {
-            *r = *b - *x * *sm;
+        for (((r, x), y), &sm) in r.iter_mut().zip(x).zip(&self.y).zip(&self.sm) {
+            *r = (*y - *x) * sm;
         }
-        for (&[a, b], &[hkl, hk]) in self.ends.iter().zip(&self.hkl_hk) {
+        let mut done = 0;
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2; `pos` and `res` have the system's length and every
+            // spring end is below it (asserted in `with_factor`).
+            done = unsafe { springs_avx2(x, r, &self.ends, &self.hkl, &self.hk) };
+        }
+        for i in done..self.ends.len() {
+            let [a, b] = self.ends[i];
             let (a, b) = (a as usize, b as usize);
             let d = x[a] - x[b];
             let len2 = d.0[0] * d.0[0] + d.0[1] * d.0[1] + d.0[2] * d.0[2];
-            // h²k (l·d/|d| − d): the projected spring minus the current one.
-            let f = if len2 > 0.0 {
-                d * (hkl / len2.sqrt() - hk)
-            } else {
-                d * -hk
-            };
-            r[a] += f;
-            r[b] -= f;
+            if len2 > 0.0 {
+                let f = d * (self.hkl[i] / len2.sqrt() - self.hk[i]);
+                r[a] += f;
+                r[b] -= f;
+            }
         }
         let an = &self.sys.anchors;
         for i in 0..an.a.len() {
             let a = an.a[i] as usize;
             let d = x[a].xyz() - an.at[i];
             let len = d.length();
-            let target = if len > 0.0 { d * (an.rest[i] / len) } else { d };
-            r[a] += Lanes4::from_vec3((target - d) * self.hk_anchor[i]);
+            if len > 0.0 {
+                let hk = self.hk_anchor[i];
+                r[a] += Lanes4::from_vec3(d * (hk * an.rest[i] / len - hk));
+            }
+        }
+    }
+
+    /// The first iterate: the inertial target y, except for particles resting on a collider at
+    /// the start of the step, which start where they are (so friction sees their whole slip).
+    fn initial_guess(&mut self) {
+        for ((p, y), x0) in self.pos.iter_mut().zip(&self.y).zip(&self.x0) {
+            let resting = self
+                .colliders
+                .as_ref()
+                .is_some_and(|c| contact::resting_on(c, *x0, *x0).is_some());
+            *p = if resting { Lanes4::from_vec3(*x0) } else { *y };
         }
     }
 
@@ -175,14 +328,23 @@ impl FastSolver {
         resting
     }
 
-    /// The correction δ: A⁻¹r when nothing is held, else the solution of A·δ = r on the
-    /// subspace the colliders leave free, by conjugate gradients preconditioned with A⁻¹.
-    fn global_step(&mut self) {
-        self.delta.copy_from_slice(&self.res);
-        self.factor.solve4(&mut self.delta);
-        if self.held.is_empty() {
+    /// Moves particles that entered a collider back out along its normal.
+    fn push_out(&mut self) {
+        let Some(colliders) = &self.colliders else {
             return;
+        };
+        for (p, x0) in self.pos.iter_mut().zip(&self.x0) {
+            let mut q = p.xyz();
+            if contact::push_out(colliders, &mut q, *x0) {
+                *p = Lanes4::from_vec3(q);
+            }
         }
+    }
+
+    /// The global step while particles are held: pos ← pos + δ with δ the solution of A·δ = res
+    /// on the subspace the colliders leave free (held components zero), by conjugate gradients
+    /// preconditioned with Ã⁻¹ (Baraff and Witkin's filtered solve).
+    fn held_global_step(&mut self) {
         let held = &self.held;
         let filter = |v: &mut [Lanes4]| {
             for &(i, hold) in held {
@@ -190,13 +352,14 @@ impl FastSolver {
                 v[i] = Lanes4::from_vec3(hold.filter(v[i].xyz()));
             }
         };
-        let [res, z, p] = &mut self.cg;
+        let [res, z, p, delta] = &mut self.cg;
         res.copy_from_slice(&self.res);
         filter(res);
-        z.copy_from_slice(&self.delta);
+        z.copy_from_slice(res);
+        self.factor.solve4(z);
         filter(z);
         p.copy_from_slice(z);
-        self.delta.fill(Lanes4::default());
+        delta.fill(Lanes4::default());
         let mut rz = dot(res, z);
         let start = rz;
         for _ in 0..CG_ITERATIONS {
@@ -205,19 +368,10 @@ impl FastSolver {
                 break;
             }
             // z doubles as q = S·A·p.
-            apply_matrix(
-                &self.ends,
-                &self.hkl_hk,
-                &self.sm,
-                &self.sys.anchors.a,
-                &self.hk_anchor,
-                p,
-                z,
-            );
+            apply_matrix(self, p, z);
             filter(z);
             let alpha = rz / dot(p, z);
-            for ((d, r), (p, q)) in self
-                .delta
+            for ((d, r), (p, q)) in delta
                 .iter_mut()
                 .zip(res.iter_mut())
                 .zip(p.iter().zip(z.iter()))
@@ -235,42 +389,115 @@ impl FastSolver {
                 *p = *z + *p * beta;
             }
         }
-    }
-
-    /// ‖res‖ / (h²·force scale) = ‖∇g‖ / force scale (contact reactions applied).
-    fn relative_residual(&self) -> f64 {
-        let h2 = self.sys.params.time_step.powi(2);
-        let sum: f64 = self.res.iter().map(|r| r.xyz().length_squared()).sum();
-        sum.sqrt() / h2 / self.sys.force_scale()
-    }
-
-    /// The first iterate: the inertial target y, except for particles resting on a collider at
-    /// the start of the step, which start where they are (so friction sees their whole slip).
-    fn initial_guess(&mut self) {
-        for ((p, y), x0) in self.pos.iter_mut().zip(&self.y).zip(&self.x0) {
-            let resting = self
-                .colliders
-                .as_ref()
-                .is_some_and(|c| contact::resting_on(c, *x0, *x0).is_some());
-            *p = Lanes4::from_vec3(if resting { *x0 } else { *y });
+        for (x, d) in self.pos.iter_mut().zip(delta.iter()) {
+            *x += *d;
         }
     }
 
-    /// Moves particles that entered a collider back out along its normal.
-    fn push_out(&mut self) {
-        let Some(colliders) = &self.colliders else {
+    /// The global step as a correction: pos ← pos + Ã⁻¹·res.
+    fn global_step(&mut self) {
+        if !self.held.is_empty() {
+            self.held_global_step();
             return;
-        };
-        for (p, x0) in self.pos.iter_mut().zip(&self.x0) {
-            let mut q = p.xyz();
-            if contact::push_out(colliders, &mut q, *x0) {
-                *p = Lanes4::from_vec3(q);
+        }
+        match &self.factor {
+            GlobalFactor::Double(f) => {
+                f.solve4(&mut self.res);
+                for (p, d) in self.pos.iter_mut().zip(&self.res) {
+                    *p += *d;
+                }
+            }
+            GlobalFactor::Single(f) => {
+                // Each lane (x, y, z: independent right-hand sides) is scaled by a power of two
+                // (exact in any precision) that puts its largest component near 1, so that the
+                // f32 correction neither overflows nor goes subnormal (a roundoff-level lane,
+                // such as z in a symmetric scene, would). The scale is the previous iteration's,
+                // redone when the residual has moved too far from it.
+                let mut scale = self.scale;
+                for pass in 0..3 {
+                    let largest = to_f32_scaled(&self.res, scale, &mut self.delta);
+                    let (next, redo) = rescale(scale, largest);
+                    self.scale = next;
+                    if !redo || pass == 2 {
+                        break;
+                    }
+                    scale = next;
+                }
+                f.solve4f(&mut self.delta);
+                let unscale = Lanes4(scale.map(|s| 1.0 / s));
+                for (p, d) in self.pos.iter_mut().zip(&self.delta) {
+                    *p += d.to_lanes4() * unscale;
+                }
             }
         }
     }
 }
 
-/// Conjugate-gradient iterations of a global step at most while particles are held.
+/// The springs' part of [`FastSolver::residual_step`], four springs at a time with AVX2: the
+/// four square roots and divisions are one instruction each, the scatter stays in spring order,
+/// and every operation is the scalar code's (no fusion), so the results are identical. Returns
+/// how many springs were done (a multiple of four); the caller does the rest.
+///
+/// # Safety
+/// The CPU supports AVX2; `x` and `r` have the same length and every end indexes them. (`x` must
+/// also have a zero fourth lane for the results to be the scalar code's.)
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn springs_avx2(
+    x: &[Lanes4],
+    r: &mut [Lanes4],
+    ends: &[[u32; 2]],
+    hkl: &[f64],
+    hk: &[f64],
+) -> usize {
+    use std::arch::x86_64::*;
+    let quads = ends.len() / 4;
+    let (ends, hkl, hk) = (&ends[..4 * quads], &hkl[..4 * quads], &hk[..4 * quads]);
+    debug_assert!(x.len() == r.len());
+    debug_assert!(ends.iter().flatten().all(|&i| (i as usize) < x.len()));
+    let (xp, rp) = (x.as_ptr() as *const f64, r.as_mut_ptr() as *mut f64);
+    for q in 0..quads {
+        let e: &[[u32; 2]; 4] = ends[4 * q..4 * q + 4].try_into().expect("4 springs");
+        // SAFETY: indices in range (the caller's contract); `Lanes4` is an aligned [f64; 4].
+        unsafe {
+            let at = |i: u32| xp.add(4 * i as usize);
+            let d: [__m256d; 4] = std::array::from_fn(|j| {
+                _mm256_sub_pd(_mm256_load_pd(at(e[j][0])), _mm256_load_pd(at(e[j][1])))
+            });
+            let sq: [__m256d; 4] = std::array::from_fn(|j| _mm256_mul_pd(d[j], d[j]));
+            // len2_j = (dx² + dy²) + (dz² + 0): the scalar code's sum (lane 3 is zero).
+            let t01 = _mm256_hadd_pd(sq[0], sq[1]);
+            let t23 = _mm256_hadd_pd(sq[2], sq[3]);
+            let lo = _mm256_blend_pd(t01, t23, 0b1100);
+            let hi = _mm256_permute2f128_pd(t01, t23, 0x21);
+            let len2 = _mm256_add_pd(lo, hi);
+            let c = _mm256_sub_pd(
+                _mm256_div_pd(
+                    _mm256_loadu_pd(hkl.as_ptr().add(4 * q)),
+                    _mm256_sqrt_pd(len2),
+                ),
+                _mm256_loadu_pd(hk.as_ptr().add(4 * q)),
+            );
+            // Coincident ends pull nothing (and l/0 is discarded).
+            let c = _mm256_and_pd(c, _mm256_cmp_pd(len2, _mm256_setzero_pd(), _CMP_GT_OQ));
+            let cs = [
+                _mm256_permute4x64_pd(c, 0x00),
+                _mm256_permute4x64_pd(c, 0x55),
+                _mm256_permute4x64_pd(c, 0xaa),
+                _mm256_permute4x64_pd(c, 0xff),
+            ];
+            for j in 0..4 {
+                let f = _mm256_mul_pd(d[j], cs[j]);
+                let (a, b) = (rp.add(4 * e[j][0] as usize), rp.add(4 * e[j][1] as usize));
+                _mm256_store_pd(a, _mm256_add_pd(_mm256_load_pd(a), f));
+                _mm256_store_pd(b, _mm256_sub_pd(_mm256_load_pd(b), f));
+            }
+        }
+    }
+    4 * quads
+}
+
+/// Conjugate-gradient iterations of a held global step at most.
 const CG_ITERATIONS: usize = 20;
 
 /// The held global step stops when the preconditioned residual norm has fallen by this factor:
@@ -283,27 +510,109 @@ fn dot(a: &[Lanes4], b: &[Lanes4]) -> f64 {
     a.iter().zip(b).map(|(a, b)| a.xyz().dot(b.xyz())).sum()
 }
 
-/// out = A·p with A = s·M + h²·L (springs and anchors).
-fn apply_matrix(
-    ends: &[[u32; 2]],
-    hkl_hk: &[[f64; 2]],
-    sm: &[f64],
-    anchors: &[u32],
-    hk_anchor: &[f64],
-    p: &[Lanes4],
-    out: &mut [Lanes4],
-) {
-    for ((o, p), sm) in out.iter_mut().zip(p).zip(sm) {
+/// out = A·p with A = s·M + h²·L (springs and anchors) of `solver`.
+fn apply_matrix(solver: &FastSolver, p: &[Lanes4], out: &mut [Lanes4]) {
+    for ((o, p), sm) in out.iter_mut().zip(p).zip(&solver.sm) {
         *o = *p * *sm;
     }
-    for (&[a, b], &[_, hk]) in ends.iter().zip(hkl_hk) {
+    for (&[a, b], &hk) in solver.ends.iter().zip(&solver.hk) {
         let (a, b) = (a as usize, b as usize);
         let f = (p[a] - p[b]) * hk;
         out[a] += f;
         out[b] -= f;
     }
-    for (&a, &hk) in anchors.iter().zip(hk_anchor) {
+    for (&a, &hk) in solver.sys.anchors.a.iter().zip(&solver.hk_anchor) {
         out[a as usize] += p[a as usize] * hk;
+    }
+}
+
+/// delta = res·scale per lane, rounded to f32 with components below 1e-27 flushed to zero;
+/// returns the largest |res·scale| per lane.
+fn to_f32_scaled(res: &[Lanes4], scale: [f64; 4], delta: &mut [Lanes4f]) -> [f64; 4] {
+    let mut largest = [0.0f64; 4];
+    for (d, r) in delta.iter_mut().zip(res) {
+        let v: [f64; 4] = std::array::from_fn(|k| r.0[k] * scale[k]);
+        largest = std::array::from_fn(|k| largest[k].max(v[k].abs()));
+        *d = Lanes4f(v.map(|v| if v.abs() < 1e-27 { 0.0 } else { v as f32 }));
+    }
+    largest
+}
+
+/// The scale for the next conversion given the largest scaled component per lane, and whether
+/// the conversion just made must be redone: some lane's largest component is outside
+/// [2⁻²⁰, 2²⁰] (a lane of zeros is fine, a non-finite one is let through at scale 1).
+fn rescale(scale: [f64; 4], largest: [f64; 4]) -> ([f64; 4], bool) {
+    let mut redo = false;
+    let next = std::array::from_fn(|k| {
+        let m = largest[k];
+        if m == 0.0 {
+            scale[k]
+        } else if !m.is_finite() {
+            redo |= scale[k] != 1.0;
+            1.0
+        } else {
+            redo |= !(2f64.powi(-20)..=2f64.powi(20)).contains(&m);
+            let unscaled = m / scale[k];
+            if unscaled > 0.0 && unscaled.is_finite() {
+                2f64.powi(-unscaled.log2().round() as i32)
+            } else {
+                1.0
+            }
+        }
+    });
+    (next, redo)
+}
+
+/// Estimated contraction per iteration of x ← x + Ã⁻¹(b − A·x) (A's upper triangle `upper`,
+/// Ã from `factor`): the error e ← (I − Ã⁻¹A)·e shrinks by ‖e₃‖/‖e₂‖ in the third of three
+/// iterations from a pseudo-random e₀ (power iteration towards the worst case).
+pub fn correction_rate(upper: &CsMat<f64>, factor: &GlobalFactor) -> f64 {
+    let n = upper.cols();
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut random = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let mut e: Vec<Lanes4> = (0..n)
+        .map(|_| Lanes4([random(), random(), random(), 0.0]))
+        .collect();
+    let norm = |v: &[Lanes4]| {
+        v.iter()
+            .map(|x| x.xyz().length_squared())
+            .sum::<f64>()
+            .sqrt()
+    };
+    let mut before = norm(&e);
+    let mut rate = 0.0;
+    let mut ae = vec![Lanes4::default(); n];
+    for _ in 0..3 {
+        symmetric_product(upper, &e, &mut ae);
+        factor.solve4(&mut ae);
+        for (e, z) in e.iter_mut().zip(&ae) {
+            *e -= *z;
+        }
+        let after = norm(&e);
+        if before == 0.0 {
+            return 0.0;
+        }
+        rate = after / before;
+        before = after;
+    }
+    rate
+}
+
+/// out = A·v for the symmetric A whose upper triangle is `upper` (compressed columns).
+pub fn symmetric_product(upper: &CsMat<f64>, v: &[Lanes4], out: &mut [Lanes4]) {
+    out.fill(Lanes4::default());
+    for (c, col) in upper.outer_iterator().enumerate() {
+        for (r, &a) in col.iter() {
+            out[r] += v[c] * a;
+            if r != c {
+                out[c] += v[r] * a;
+            }
+        }
     }
 }
 
@@ -315,16 +624,17 @@ impl StepSolver for FastSolver {
     fn step(&mut self, x: &mut [DVec3], v: &mut [DVec3]) -> Result<StepStats> {
         let h = self.sys.params.time_step;
         self.x0.copy_from_slice(x);
-        self.sys.predict(x, v, &mut self.y);
-        for (b, (y, sm)) in self.base.iter_mut().zip(self.y.iter().zip(&self.sm)) {
-            *b = Lanes4::from_vec3(*y * *sm);
+        // y goes through `x` (its DVec3 scratch) into the padded layout; the first iterate is y.
+        self.sys.predict(&self.x0, v, x);
+        for (y, x) in self.y.iter_mut().zip(x.iter()) {
+            *y = Lanes4::from_vec3(*x);
         }
         self.initial_guess();
         if let Some(h) = &mut self.history {
             h.clear();
         }
         for k in 0..self.iterations {
-            self.residual();
+            self.residual_step();
             self.contact_reactions();
             if k > 0 && self.history.is_some() {
                 let r = self.relative_residual();
@@ -333,13 +643,10 @@ impl StepSolver for FastSolver {
                 }
             }
             self.global_step();
-            for (p, d) in self.pos.iter_mut().zip(&self.delta) {
-                *p += *d;
-            }
             self.push_out();
         }
         // One more residual measures how far the last iterate is from stationary.
-        self.residual();
+        self.residual_step();
         let contacts = self.contact_reactions();
         let residual = self.relative_residual();
         if let Some(h) = &mut self.history {
@@ -357,5 +664,240 @@ impl StepSolver for FastSolver {
             converged: true,
             contacts,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloth::preset::{defaults, lab_cloth};
+    use crate::cloth::{ClothModel, StepParams};
+
+    /// The lab cloth at `resolution` cells per side, pinned at two corners, with stiffness `k`
+    /// (N/m), mass `m` (kg per particle) and time step `h` (s).
+    fn lab(resolution: u32, k: f64, m: f64, h: f64) -> (ReducedSystem, Vec<DVec3>) {
+        lab_pinned(resolution, k, m, h, true)
+    }
+
+    fn lab_pinned(
+        resolution: u32,
+        k: f64,
+        m: f64,
+        h: f64,
+        pins: bool,
+    ) -> (ReducedSystem, Vec<DVec3>) {
+        let cloth = lab_cloth(resolution, k);
+        let n = cloth.mesh.positions.len();
+        let mut pinned = vec![false; n];
+        for &p in cloth.pins.iter().filter(|_| pins) {
+            pinned[p as usize] = true;
+        }
+        let model = ClothModel::new(cloth.mesh, cloth.springs, vec![m; n], pinned).unwrap();
+        let params = StepParams {
+            time_step: h,
+            damping: defaults::DAMPING,
+            gravity: DVec3::from_array(defaults::GRAVITY),
+        };
+        let sys = ReducedSystem::new(&model, params).unwrap();
+        let x = sys.gather(model.positions());
+        (sys, x)
+    }
+
+    /// A moving state: `frames` steps of a converged solve from rest.
+    fn moving(sys: &ReducedSystem, x: &[DVec3], frames: usize) -> (Vec<DVec3>, Vec<DVec3>) {
+        let mut solver = FastSolver::new(sys.clone(), 30).unwrap();
+        let (mut x, mut v) = (x.to_vec(), vec![DVec3::ZERO; x.len()]);
+        for _ in 0..frames {
+            solver.step(&mut x, &mut v).unwrap();
+        }
+        (x, v)
+    }
+
+    fn exact_solver(sys: &ReducedSystem, iterations: usize) -> FastSolver {
+        let f = Cholesky::new(&FastSolver::matrix(sys)).unwrap();
+        FastSolver::with_factor(sys.clone(), iterations, GlobalFactor::Double(f), 0.0)
+    }
+
+    /// The f32-factor iteration converges to the f64 one's fixed point (the implicit Euler step),
+    /// not just near it: after enough iterations the two steps agree to 1e-9 of the step's
+    /// displacement, and both residuals reach the f64 roundoff floor.
+    #[test]
+    fn single_precision_correction_has_the_double_fixed_point() {
+        // A stiffer lab cloth (h²k/m ≈ 0.28) so the iteration has work to do, 41×41 particles.
+        let (sys, start) = lab(40, 1e3, 1.0, 1.0 / 60.0);
+        let (x0, v0) = moving(&sys, &start, 20);
+        let mut single = FastSolver::new(sys.clone(), 200).unwrap();
+        assert!(
+            single.factor().is_single(),
+            "the lab cloth uses the f32 factor"
+        );
+        assert!(single.factor_rate() < 1e-4, "rate {}", single.factor_rate());
+        let mut double = exact_solver(&sys, 200);
+        single.record_history(true);
+        double.record_history(true);
+        let (mut xs, mut vs) = (x0.clone(), v0.clone());
+        let (mut xd, mut vd) = (x0.clone(), v0.clone());
+        let rs = single.step(&mut xs, &mut vs).unwrap().residual;
+        let rd = double.step(&mut xd, &mut vd).unwrap().residual;
+        let moved = xd
+            .iter()
+            .zip(&x0)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, f64::max);
+        let diff = xs
+            .iter()
+            .zip(&xd)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, f64::max);
+        assert!(moved > 1e-3, "the step moves the cloth ({moved} m)");
+        assert!(
+            diff <= 1e-9 * moved,
+            "single vs double: {diff:e} m of {moved:e} m"
+        );
+        assert!(
+            rs < 1e-12 && rd < 1e-12,
+            "residuals {rs:e} (f32) {rd:e} (f64)"
+        );
+        // Iteration by iteration the two agree while far from the floor: the f32 factor does
+        // not slow the iteration down.
+        let (hs, hd) = (single.history().unwrap(), double.history().unwrap());
+        for (k, (s, d)) in hs.iter().zip(hd).enumerate().take(20) {
+            assert!((s - d).abs() <= 1e-3 * d, "iteration {k}: {s:e} vs {d:e}");
+        }
+    }
+
+    /// With an exact factor the correction form is the classic iteration x ← A⁻¹·b(x): one
+    /// iteration from y lands on A⁻¹·b(y), computed here independently with the f64 factor.
+    #[test]
+    fn one_correction_is_one_classic_global_step() {
+        let (sys, start) = lab(12, defaults::STIFFNESS, 1.0, 1.0 / 60.0);
+        let (x0, v0) = moving(&sys, &start, 5);
+        let mut solver = exact_solver(&sys, 1);
+        let (mut x, mut v) = (x0.clone(), v0.clone());
+        solver.step(&mut x, &mut v).unwrap();
+        // b(y) = s·M·y + h²·J·d(y) + Σ h²k·(pin + l·dir).
+        let h2 = sys.params.time_step.powi(2);
+        let s = sys.inertia_scale();
+        let mut y = vec![DVec3::ZERO; x0.len()];
+        sys.predict(&x0, &v0, &mut y);
+        let mut b: Vec<DVec3> = y.iter().zip(&sys.mass).map(|(y, m)| *y * (s * m)).collect();
+        let sp = &sys.springs;
+        for i in 0..sp.a.len() {
+            let (a, bb) = (sp.a[i] as usize, sp.b[i] as usize);
+            let d = (y[a] - y[bb]).normalize() * (h2 * sp.k[i] * sp.rest[i]);
+            b[a] += d;
+            b[bb] -= d;
+        }
+        let an = &sys.anchors;
+        for i in 0..an.a.len() {
+            let a = an.a[i] as usize;
+            let dir = (y[a] - an.at[i]).normalize();
+            b[a] += (an.at[i] + dir * an.rest[i]) * (h2 * an.k[i]);
+        }
+        Cholesky::new(&FastSolver::matrix(&sys))
+            .unwrap()
+            .solve3(&mut b);
+        for (got, want) in x.iter().zip(&b) {
+            assert!(got.distance(*want) < 1e-12, "{got} vs {want}");
+        }
+    }
+
+    /// A system too ill-conditioned for an f32 factor keeps the f64 factor, and still converges:
+    /// a free cloth (no pins: only inertia resists a rigid translation) with stiff springs and
+    /// light particles, h²k/m = 1e8, so the condition number is ~1e9.
+    #[test]
+    fn ill_conditioned_systems_keep_the_double_factor() {
+        let (sys, start) = lab_pinned(30, 1e5, 1e-5, 1.0 / 10.0, false);
+        let mut solver = FastSolver::new(sys.clone(), 5).unwrap();
+        assert!(
+            !solver.factor().is_single(),
+            "f32 rate would be {}",
+            correction_rate(
+                &FastSolver::matrix(&sys),
+                &GlobalFactor::Single(
+                    Cholesky::new(&FastSolver::matrix(&sys))
+                        .unwrap()
+                        .to_f32_dropping(1e-8)
+                )
+            )
+        );
+        assert!(solver.factor_rate() < 1e-6, "rate {}", solver.factor_rate());
+        let (mut x, mut v) = (start.clone(), vec![DVec3::ZERO; start.len()]);
+        let stats = solver.step(&mut x, &mut v).unwrap();
+        assert!(stats.residual.is_finite());
+    }
+
+    /// The AVX2 spring kernel gives exactly the scalar loop's residual (coincident ends and a
+    /// count that is not a multiple of four included).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_springs_match_the_scalar_loop_exactly() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let n = 40;
+        let x: Vec<Lanes4> = (0..n)
+            .map(|i| {
+                let t = i as f64;
+                Lanes4::from_vec3(DVec3::new((t * 0.7).sin(), (t * 0.3).cos() * 2.0, t * 0.01))
+            })
+            .collect();
+        let mut ends: Vec<[u32; 2]> = (0..n as u32 - 3)
+            .flat_map(|i| [[i, i + 1], [i, i + 3], [i + 2, i]])
+            .collect();
+        ends.push([5, 5]); // coincident ends
+        ends.push([7, 9]);
+        let hkl: Vec<f64> = (0..ends.len()).map(|i| 0.1 + 0.01 * i as f64).collect();
+        let hk: Vec<f64> = (0..ends.len()).map(|i| 0.3 + 0.02 * i as f64).collect();
+        let mut want = vec![Lanes4::from_vec3(DVec3::new(0.5, -0.25, 1.0)); n];
+        let mut got = want.clone();
+        for (i, &[a, b]) in ends.iter().enumerate() {
+            let (a, b) = (a as usize, b as usize);
+            let d = x[a] - x[b];
+            let len2 = d.0[0] * d.0[0] + d.0[1] * d.0[1] + d.0[2] * d.0[2];
+            if len2 > 0.0 {
+                let f = d * (hkl[i] / len2.sqrt() - hk[i]);
+                want[a] += f;
+                want[b] -= f;
+            }
+        }
+        // SAFETY: AVX2 detected; every end is below n.
+        let done = unsafe { springs_avx2(&x, &mut got, &ends, &hkl, &hk) };
+        assert_eq!(done, ends.len() / 4 * 4);
+        for (i, &[a, b]) in ends.iter().enumerate().skip(done) {
+            let (a, b) = (a as usize, b as usize);
+            let d = x[a] - x[b];
+            let len2 = d.0[0] * d.0[0] + d.0[1] * d.0[1] + d.0[2] * d.0[2];
+            if len2 > 0.0 {
+                let f = d * (hkl[i] / len2.sqrt() - hk[i]);
+                got[a] += f;
+                got[b] -= f;
+            }
+        }
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn rescaling_keeps_lanes_near_one() {
+        // In range: no redo; the next scale follows the residual.
+        let (next, redo) = rescale([1.0; 4], [0.5, 2.0, 1e-3, 0.0]);
+        assert!(!redo);
+        assert_eq!(next, [2.0, 0.5, 1024.0, 1.0]);
+        // Far out of range (a new step's residual): redo at the right scale.
+        let (next, redo) = rescale([1.0, 1.0, 1.0, 1.0], [1e-12, 1.0, 1.0, 0.0]);
+        assert!(redo);
+        assert_eq!(next[0], 2f64.powi(40));
+        // Non-finite: scale 1, so the value passes through unchanged.
+        let (next, redo) = rescale([4.0, 1.0, 1.0, 1.0], [f64::INFINITY, 1.0, 1.0, 0.0]);
+        assert!(redo);
+        assert_eq!(next[0], 1.0);
+        let mut delta = vec![Lanes4f::default(); 2];
+        let res = [
+            Lanes4([3.0, 1e-40, -8.0, 0.0]),
+            Lanes4([1.0, 2.0, 0.5, 0.0]),
+        ];
+        let largest = to_f32_scaled(&res, [0.5, 1.0, 0.25, 1.0], &mut delta);
+        assert_eq!(largest, [1.5, 2.0, 2.0, 0.0]);
+        assert_eq!(delta[0].0, [1.5, 0.0, -2.0, 0.0], "1e-40 is flushed");
     }
 }
