@@ -131,6 +131,39 @@ proptest! {
     }
 
     #[test]
+    fn collider_specs_never_panic(kind in prop_oneof![Just("plane:"), Just("sphere:"), Just("box:"), Just("mesh:"), Just("")], rest in "[ -~]{0,30}") {
+        let _ = format!("{kind}{rest}").parse::<scenebake::cloth::collide::ColliderSpec>();
+    }
+
+    /// Random triangle soups (degenerate, duplicated, out-of-range indices): the mesh collider
+    /// builds or refuses with an error, and every query answers with a finite distance and a
+    /// unit normal.
+    #[test]
+    fn mesh_collider_answers_every_query(
+        points in prop::collection::vec((-2i8..3, -2i8..3, -2i8..3), 0..12),
+        tris in prop::collection::vec((0u32..14, 0u32..14, 0u32..14), 0..16),
+        queries in prop::collection::vec((-30i16..30, -30i16..30, -30i16..30, -30i16..30, -30i16..30, -30i16..30), 1..8),
+        reach in 0.0f64..3.0,
+    ) {
+        use scenebake::cloth::collide::MeshCollider;
+        use scenebake::glam::DVec3;
+        let positions: Vec<DVec3> = points.iter().map(|&(x, y, z)| DVec3::new(x as f64, y as f64, z as f64) * 0.5).collect();
+        // Mostly valid indices (so most soups build), and now and then one past the end.
+        let n = positions.len() as u32 + u32::from(tris.len() % 5 == 0);
+        let triangles: Vec<[u32; 3]> = tris.iter().map(|&(a, b, c)| [a % n.max(1), b % n.max(1), c % n.max(1)]).collect();
+        let Ok(mesh) = MeshCollider::new(positions, triangles) else { return Ok(()) };
+        prop_assert!(!mesh.triangles().is_empty());
+        for &(px, py, pz, fx, fy, fz) in &queries {
+            let p = DVec3::new(px as f64, py as f64, pz as f64) * 0.1;
+            let from = DVec3::new(fx as f64, fy as f64, fz as f64) * 0.1;
+            if let Some(s) = mesh.contact(p, from, reach) {
+                prop_assert!(s.distance.is_finite(), "{s:?}");
+                prop_assert!((s.normal.length() - 1.0).abs() < 1e-9, "{s:?}");
+            }
+        }
+    }
+
+    #[test]
     fn valid_pin_specs_round_trip(kind in 0usize..3, nums in prop::collection::vec(-5.0f64..5.0, 6), idx in prop::collection::vec(0u32..1000, 1..5), name in "[a-z_]{1,8}") {
         let spec = match kind {
             0 => format!("index:{}", idx.iter().map(u32::to_string).collect::<Vec<_>>().join(",")),

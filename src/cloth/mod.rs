@@ -1,7 +1,8 @@
 //! Mass-spring cloth and soft bodies: model, solvers, and the bake loop that records frames.
 //!
 //! Data flows one way: [`ClothModel`] (particles, springs, masses, pins) → [`ReducedSystem`]
-//! (pins removed, unknowns ordered) → a [`StepSolver`] → [`simulate`] records a [`FrameCache`].
+//! (pins removed, unknowns ordered) → a [`StepSolver`] (with its [`collide::Colliders`]) →
+//! [`simulate`] (which adds the [`wind`] before each step) records a [`FrameCache`].
 
 pub mod collide;
 pub mod factor;
