@@ -5,7 +5,8 @@
 //!   back: the inward normal part of r is cancelled and the tangential part is reduced by the
 //!   Coulomb limit μ·(normal reaction), to zero when static ([`contact_reaction`]); the particle
 //!   is then held along the normal (or entirely, when sticking) in the correction, which solves
-//!   A·δ = r on the held subspace by conjugate gradients preconditioned with A's Cholesky factor
+//!   A·δ = r on the subspace the colliders leave free, by conjugate gradients preconditioned with
+//!   the prefactored Cholesky factor of A
 //!   (the filtered solve of Baraff and Witkin 1998). After each correction, particles that
 //!   entered a collider are moved out along its normal to the thickness ([`push_out`]). A fixed
 //!   point is an equilibrium of the implicit step with contact forces obeying Coulomb's law.
@@ -183,8 +184,8 @@ impl Penalty {
         }
     }
 
-    /// The friction slip of a lagged contact at `x`: tangential displacement since the step
-    /// began, and its tangent projector's normal.
+    /// The friction slip of a lagged contact at `x`: the particle's displacement since the step
+    /// began, less its part along the contact normal (m).
     #[inline]
     fn slip(&self, c: &LaggedContact, x: &[DVec3]) -> DVec3 {
         let i = c.particle as usize;
@@ -277,14 +278,6 @@ impl Penalty {
         });
         self.lagged = lagged;
         touching
-    }
-
-    /// The smallest signed distance (m) of any particle at `x` from any collider within reach,
-    /// for reports and tests (`f64::INFINITY` when none is within the thickness).
-    pub fn closest_approach(&self, x: &[DVec3]) -> f64 {
-        let mut d = f64::INFINITY;
-        self.for_each_contact(x, |_, sp, _| d = d.min(sp.distance));
-        d
     }
 }
 
