@@ -6,10 +6,10 @@
 //!   Coulomb limit μ·(normal reaction), to zero when static ([`contact_reaction`]); the particle
 //!   is then held along the normal (or entirely, when sticking) in the correction, which solves
 //!   A·δ = r on the subspace the colliders leave free, by conjugate gradients preconditioned with
-//!   the prefactored Cholesky factor of A
-//!   (the filtered solve of Baraff and Witkin 1998). After each correction, particles that
-//!   entered a collider are moved out along its normal to the thickness ([`push_out`]). A fixed
-//!   point is an equilibrium of the implicit step with contact forces obeying Coulomb's law.
+//!   the prefactored Cholesky factor of A (the filtered solve of Baraff and Witkin 1998). After
+//!   each correction, particles that entered a collider are moved out along its normal to the
+//!   thickness ([`push_out`]). A fixed point is an equilibrium of the implicit step with contact
+//!   forces obeying Coulomb's law.
 //! - Newton minimises the objective plus a stiff penalty ½κ(t − φ)² for every particle closer
 //!   than the thickness t, and a friction potential built from the normal force and normal of
 //!   the previous step (lagged, as in incremental potential contact): μN·f(|slip|) with f
