@@ -224,6 +224,18 @@ fn bad_option_values_name_the_option() {
         args.extend_from_slice(extra);
         fails_with(&args, words);
     }
+    fails_with(
+        &[
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "-o",
+            &out,
+            "--translate",
+            "0,1,0",
+        ],
+        &["--translate", "lab-cloth preset"],
+    );
 }
 
 #[test]

@@ -401,6 +401,17 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
 
     let (mesh, springs, mut pinned): (Mesh, SpringSet, Vec<bool>) = match &job.source {
         ClothSource::LabCloth { resolution } => {
+            if job.scale != 1.0 || job.translate != DVec3::ZERO {
+                let option = if job.scale != 1.0 {
+                    "--scale"
+                } else {
+                    "--translate"
+                };
+                return Err(Error::option(
+                    option,
+                    "places an input file; the lab-cloth preset keeps the labs' coordinates",
+                ));
+            }
             if *resolution == 0 || *resolution > 2000 {
                 return Err(Error::option(
                     "--resolution",
