@@ -70,8 +70,8 @@ struct GustWave {
 pub struct Aerodynamics {
     wind: Wind,
     triangles: Vec<[u32; 3]>,
+    /// Mass (kg) of each free particle; `None` for pinned ones, which the wind does not move.
     free_mass: Vec<Option<f64>>,
-    mass: Vec<f64>,
     waves: Vec<GustWave>,
     /// Per-particle force and dF/dv bound, reused between steps.
     force: Vec<DVec3>,
@@ -99,23 +99,17 @@ impl Aerodynamics {
             .collect();
         Aerodynamics {
             triangles: model.mesh.triangles.clone(),
-            free_mass: Vec::new(),
-            mass: model.mass.clone(),
+            free_mass: model
+                .pinned
+                .iter()
+                .zip(&model.mass)
+                .map(|(&pinned, &m)| (!pinned).then_some(m))
+                .collect(),
             waves,
             force: vec![DVec3::ZERO; n],
             beta: vec![0.0; n],
             wind,
         }
-        .with_pins(&model.pinned)
-    }
-
-    fn with_pins(mut self, pinned: &[bool]) -> Self {
-        self.free_mass = pinned
-            .iter()
-            .zip(&self.mass)
-            .map(|(&p, &m)| (!p && m > 0.0).then_some(m))
-            .collect();
-        self
     }
 
     /// The wind settings.
