@@ -651,11 +651,11 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
     ))
 }
 
-/// The colliders as static meshes named `collider_1`, `collider_2`...; planes as squares four
-/// times the cloth's size, under its centre.
+/// The colliders as static meshes named `collider_1`, `collider_2`...; planes as squares twice
+/// the cloth's diagonal (at least 1 m), under its centre.
 fn collider_meshes(model: &ClothModel, colliders: &Colliders) -> Vec<crate::export::StaticMesh> {
     let (lo, hi) = model.mesh.bounds();
-    let size = 4.0 * (hi - lo).length().max(0.5);
+    let size = 2.0 * (hi - lo).length().max(0.5);
     colliders
         .shapes
         .iter()
