@@ -62,10 +62,7 @@ fn settle(sys: &ReducedSystem, start: &[DVec3]) -> (Vec<DVec3>, Vec<DVec3>) {
 fn lab(name: &'static str, resolution: u32) -> Scene {
     let cloth = lab_cloth(resolution, defaults::STIFFNESS);
     let n = cloth.mesh.positions.len();
-    let mut pinned = vec![false; n];
-    for &p in &cloth.pins {
-        pinned[p as usize] = true;
-    }
+    let pinned = cloth.pinned_flags();
     let model =
         ClothModel::new(cloth.mesh, cloth.springs, vec![defaults::MASS; n], pinned).unwrap();
     let params = StepParams {

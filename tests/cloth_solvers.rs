@@ -17,10 +17,7 @@ fn lab(damping: f64) -> (ReducedSystem, Vec<DVec3>) {
 fn lab_with_stiffness(damping: f64, stiffness: f64) -> (ReducedSystem, Vec<DVec3>) {
     let cloth = lab_cloth(defaults::RESOLUTION, stiffness);
     let n = cloth.mesh.positions.len();
-    let mut pinned = vec![false; n];
-    for &p in &cloth.pins {
-        pinned[p as usize] = true;
-    }
+    let pinned = cloth.pinned_flags();
     let model =
         ClothModel::new(cloth.mesh, cloth.springs, vec![defaults::MASS; n], pinned).unwrap();
     let params = StepParams {

@@ -429,12 +429,11 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
                 s.stiffness = bend_stiffness;
             }
             lab.springs.springs.retain(|s| s.stiffness > 0.0);
-            let mut pinned = vec![false; lab.mesh.particle_count()];
-            if job.pins.is_empty() {
-                for &p in &lab.pins {
-                    pinned[p as usize] = true;
-                }
-            }
+            let pinned = if job.pins.is_empty() {
+                lab.pinned_flags()
+            } else {
+                vec![false; lab.mesh.particle_count()]
+            };
             (lab.mesh, lab.springs, pinned)
         }
         ClothSource::File(path) => {

@@ -736,10 +736,11 @@ mod tests {
     ) -> (ReducedSystem, Vec<DVec3>) {
         let cloth = lab_cloth(resolution, k);
         let n = cloth.mesh.positions.len();
-        let mut pinned = vec![false; n];
-        for &p in cloth.pins.iter().filter(|_| pins) {
-            pinned[p as usize] = true;
-        }
+        let pinned = if pins {
+            cloth.pinned_flags()
+        } else {
+            vec![false; n]
+        };
         let model = ClothModel::new(cloth.mesh, cloth.springs, vec![m; n], pinned).unwrap();
         let params = StepParams {
             time_step: h,

@@ -501,10 +501,11 @@ mod tests {
     fn lab_system_pinned(n: u32, pins: bool) -> (ReducedSystem, Vec<DVec3>) {
         let lab = lab_cloth(n, 100.0);
         let count = lab.mesh.positions.len();
-        let mut pinned = vec![false; count];
-        for &p in lab.pins.iter().filter(|_| pins) {
-            pinned[p as usize] = true;
-        }
+        let pinned = if pins {
+            lab.pinned_flags()
+        } else {
+            vec![false; count]
+        };
         let model = ClothModel::new(lab.mesh, lab.springs, vec![1.0; count], pinned).unwrap();
         let params = StepParams {
             time_step: 1.0 / 60.0,

@@ -17,6 +17,17 @@ pub struct LabCloth {
     pub pins: Vec<u32>,
 }
 
+impl LabCloth {
+    /// One flag per particle: true for the lab's two pinned corners.
+    pub fn pinned_flags(&self) -> Vec<bool> {
+        let mut pinned = vec![false; self.mesh.positions.len()];
+        for &p in &self.pins {
+            pinned[p as usize] = true;
+        }
+        pinned
+    }
+}
+
 /// Lab values.
 pub mod defaults {
     /// Mass per particle, kg.
