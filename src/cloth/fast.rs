@@ -278,17 +278,7 @@ impl FastSolver {
             // spring end is below it (asserted in `with_factor`).
             done = unsafe { springs_avx2(x, r, &self.ends, &self.hkl, &self.hk) };
         }
-        for i in done..self.ends.len() {
-            let [a, b] = self.ends[i];
-            let (a, b) = (a as usize, b as usize);
-            let d = x[a] - x[b];
-            let len2 = d.0[0] * d.0[0] + d.0[1] * d.0[1] + d.0[2] * d.0[2];
-            if len2 > 0.0 {
-                let f = d * (self.hkl[i] / len2.sqrt() - self.hk[i]);
-                r[a] += f;
-                r[b] -= f;
-            }
-        }
+        springs_scalar(x, r, &self.ends, &self.hkl, &self.hk, done);
         let an = &self.sys.anchors;
         for i in 0..an.a.len() {
             let a = an.a[i] as usize;
@@ -470,6 +460,29 @@ fn solve_single(
     }
     f.solve4f(delta);
     Lanes4(used.map(|s| 1.0 / s))
+}
+
+/// The springs' part of [`FastSolver::residual_step`] from spring `first` on: h²k·(l/|d| − 1)·d
+/// added to end a and subtracted from end b (d = xa − xb; coincident ends pull nothing).
+fn springs_scalar(
+    x: &[Lanes4],
+    r: &mut [Lanes4],
+    ends: &[[u32; 2]],
+    hkl: &[f64],
+    hk: &[f64],
+    first: usize,
+) {
+    for i in first..ends.len() {
+        let [a, b] = ends[i];
+        let (a, b) = (a as usize, b as usize);
+        let d = x[a] - x[b];
+        let len2 = d.0[0] * d.0[0] + d.0[1] * d.0[1] + d.0[2] * d.0[2];
+        if len2 > 0.0 {
+            let f = d * (hkl[i] / len2.sqrt() - hk[i]);
+            r[a] += f;
+            r[b] -= f;
+        }
+    }
 }
 
 /// The springs' part of [`FastSolver::residual_step`], four springs at a time with AVX2: the
@@ -900,29 +913,11 @@ mod tests {
         let hk: Vec<f64> = (0..ends.len()).map(|i| 0.3 + 0.02 * i as f64).collect();
         let mut want = vec![Lanes4::from_vec3(DVec3::new(0.5, -0.25, 1.0)); n];
         let mut got = want.clone();
-        for (i, &[a, b]) in ends.iter().enumerate() {
-            let (a, b) = (a as usize, b as usize);
-            let d = x[a] - x[b];
-            let len2 = d.0[0] * d.0[0] + d.0[1] * d.0[1] + d.0[2] * d.0[2];
-            if len2 > 0.0 {
-                let f = d * (hkl[i] / len2.sqrt() - hk[i]);
-                want[a] += f;
-                want[b] -= f;
-            }
-        }
+        springs_scalar(&x, &mut want, &ends, &hkl, &hk, 0);
         // SAFETY: AVX2 detected; every end is below n.
         let done = unsafe { springs_avx2(&x, &mut got, &ends, &hkl, &hk) };
         assert_eq!(done, ends.len() / 4 * 4);
-        for (i, &[a, b]) in ends.iter().enumerate().skip(done) {
-            let (a, b) = (a as usize, b as usize);
-            let d = x[a] - x[b];
-            let len2 = d.0[0] * d.0[0] + d.0[1] * d.0[1] + d.0[2] * d.0[2];
-            if len2 > 0.0 {
-                let f = d * (hkl[i] / len2.sqrt() - hk[i]);
-                got[a] += f;
-                got[b] -= f;
-            }
-        }
+        springs_scalar(&x, &mut got, &ends, &hkl, &hk, done);
         assert_eq!(got, want);
     }
 
