@@ -20,13 +20,16 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{DVec3, Vec3};
-use scenebake::bake::cloth::{prepare_cloth, ClothJob, ClothSource, PreparedCloth};
+use scenebake::bake::cloth::{
+    simulate_cloth, ClothJob, ClothSource, PreparedCloth, SimulatedCloth,
+};
 use scenebake::cloth::collide::ColliderSpec;
-use scenebake::cloth::{make_solver, simulate, BakeParams, SolverKind};
+use scenebake::cloth::{make_solver, BakeParams, SolverKind};
 
 struct Scene {
     name: &'static str,
     prepared: PreparedCloth,
+    /// Positions (m) and velocities (m/s) of every particle, in the model's order.
     x: Vec<DVec3>,
     v: Vec<DVec3>,
 }
@@ -43,24 +46,20 @@ fn settled(name: &'static str, input: &str, solver: SolverKind, table: ColliderS
         job.stiffness = Some(100.0);
         job.density = Some(0.5);
     }
-    let prepared = prepare_cloth(&job).unwrap();
-    let mut solver = make_solver(&prepared.model, &prepared.params).unwrap();
-    let sim = simulate(
-        &prepared.model,
-        solver.as_mut(),
-        &prepared.params,
-        &mut |_| {},
-    )
-    .unwrap();
-    let sys = solver.system();
-    let last: Vec<DVec3> = sim.cache.frame(30).iter().map(Vec3::as_dvec3).collect();
-    let before: Vec<DVec3> = sim.cache.frame(29).iter().map(Vec3::as_dvec3).collect();
-    let x = sys.gather(&last);
-    let x_before = sys.gather(&before);
+    let SimulatedCloth {
+        prepared,
+        simulation,
+    } = simulate_cloth(&job, &mut |_, _| {}).unwrap();
+    let x: Vec<DVec3> = simulation
+        .cache
+        .frame(30)
+        .iter()
+        .map(Vec3::as_dvec3)
+        .collect();
     let v = x
         .iter()
-        .zip(&x_before)
-        .map(|(a, b)| (*a - *b) * prepared.params.fps)
+        .zip(simulation.cache.frame(29))
+        .map(|(a, b)| (*a - b.as_dvec3()) * prepared.params.fps)
         .collect();
     Scene {
         name,
@@ -81,7 +80,11 @@ fn bench_scene(c: &mut Criterion, scene: &Scene) {
     };
     for (label, params) in [("free", &free), ("box", with_table)] {
         let mut solver = make_solver(&scene.prepared.model, params).unwrap();
-        let (mut x, mut v) = (scene.x.clone(), scene.v.clone());
+        let (x0, v0) = (
+            solver.system().gather(&scene.x),
+            solver.system().gather(&scene.v),
+        );
+        let (mut x, mut v) = (x0.clone(), v0.clone());
         let stats = solver.step(&mut x, &mut v).unwrap();
         eprintln!(
             "{} {label} {:?}: {} particles in contact, {} iterations",
@@ -89,8 +92,8 @@ fn bench_scene(c: &mut Criterion, scene: &Scene) {
         );
         g.bench_function(format!("{:?}/{label}", params.solver).to_lowercase(), |b| {
             b.iter(|| {
-                x.copy_from_slice(&scene.x);
-                v.copy_from_slice(&scene.v);
+                x.copy_from_slice(&x0);
+                v.copy_from_slice(&v0);
                 black_box(solver.step(&mut x, &mut v).unwrap())
             })
         });

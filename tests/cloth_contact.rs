@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use glam::{DVec3, Vec3};
-use scenebake::bake::cloth::{prepare_cloth, ClothJob, ClothSource};
+use scenebake::bake::cloth::{simulate_cloth, ClothJob, ClothSource, SimulatedCloth};
 use scenebake::cloth::collide::{Ball, Collider, ColliderSpec, Colliders, Cuboid, HalfSpace};
 use scenebake::cloth::springs::SpringSet;
 use scenebake::cloth::{
@@ -22,16 +22,11 @@ fn mesh_path(name: &str) -> PathBuf {
 
 /// Bakes `job` with the library (no export) and returns the cache and the parameters used.
 fn bake(job: &ClothJob) -> (FrameCache, BakeParams, ClothModel) {
-    let prepared = prepare_cloth(job).unwrap();
-    let mut solver = make_solver(&prepared.model, &prepared.params).unwrap();
-    let sim = simulate(
-        &prepared.model,
-        solver.as_mut(),
-        &prepared.params,
-        &mut |_| {},
-    )
-    .unwrap();
-    (sim.cache, prepared.params, prepared.model)
+    let SimulatedCloth {
+        prepared,
+        simulation,
+    } = simulate_cloth(job, &mut |_, _| {}).unwrap();
+    (simulation.cache, prepared.params, prepared.model)
 }
 
 fn job(input: &str, solver: SolverKind, frames: usize) -> ClothJob {

@@ -16,7 +16,9 @@ use crate::cloth::pins::{pinned_flags, PinSpec};
 use crate::cloth::preset::{self, lab_cloth};
 use crate::cloth::springs::{surface_springs, volume_springs, SpringKind, SpringSet};
 use crate::cloth::wind::{self, Wind};
-use crate::cloth::{make_solver, simulate, BakeParams, ClothModel, SolverKind, StepStats};
+use crate::cloth::{
+    make_solver, simulate, BakeParams, ClothModel, Simulation, SolverKind, StepStats,
+};
 use crate::error::{Error, Result};
 use crate::export::morph::{check_cache, encode_morph_gltf};
 use crate::export::vat::{encode_vat, vat_paths, VatManifest, DEFAULT_MAX_WIDTH};
@@ -608,17 +610,45 @@ pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
     }
 }
 
+/// A cloth job simulated but not exported.
+#[derive(Debug, Clone)]
+pub struct SimulatedCloth {
+    /// The model and the parameters used.
+    pub prepared: PreparedCloth,
+    /// The frames and per-frame solver figures.
+    pub simulation: Simulation,
+}
+
+/// Prepares and simulates `job` (calling `progress(frame, frames)`) without writing anything.
+///
+/// # Errors
+/// As [`prepare_cloth`]; [`Error::Diverged`] when the simulation blows up.
+pub fn simulate_cloth(
+    job: &ClothJob,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<SimulatedCloth> {
+    let prepared = prepare_cloth(job)?;
+    let PreparedCloth { model, params, .. } = &prepared;
+    let mut solver = make_solver(model, params)?;
+    let frames = params.frames;
+    let simulation = simulate(model, solver.as_mut(), params, &mut |f| progress(f, frames))?;
+    Ok(SimulatedCloth {
+        prepared,
+        simulation,
+    })
+}
+
 /// Runs a whole bake: prepare, simulate (calling `progress(frame, frames)`), export, report.
 ///
 /// # Errors
 /// As [`prepare_cloth`]; [`Error::Diverged`] when the simulation blows up (nothing is written);
 /// write errors.
 pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Result<ClothReport> {
-    let prepared = prepare_cloth(job)?;
+    let SimulatedCloth {
+        prepared,
+        simulation: sim,
+    } = simulate_cloth(job, progress)?;
     let PreparedCloth { model, params, .. } = &prepared;
-    let mut solver = make_solver(model, params)?;
-    let frames = params.frames;
-    let sim = simulate(model, solver.as_mut(), params, &mut |f| progress(f, frames))?;
 
     let export_start = Instant::now();
     let name = job.name.clone().unwrap_or_else(|| match &job.source {
