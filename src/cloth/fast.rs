@@ -23,7 +23,7 @@ use glam::DVec3;
 use sprs::CsMat;
 
 use super::collide::contact::{self, Hold};
-use super::collide::Colliders;
+use super::collide::{Colliders, SurfacePoint};
 use super::factor::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
 use super::system::ReducedSystem;
 use super::{StepSolver, StepStats};
@@ -124,6 +124,9 @@ pub struct FastSolver {
     history: Option<Vec<f64>>,
     /// Colliders, when any (see [`contact`]).
     colliders: Option<Colliders>,
+    /// The collider surface each particle rests on at `pos` (see [`contact::resting_on`]), kept
+    /// up to date wherever `pos` changes (allocated with the colliders).
+    resting: Vec<Option<SurfacePoint>>,
     /// Particles held by a collider in the global step, with how.
     held: Vec<(u32, Hold)>,
     /// Work vectors of the held global step: residual, preconditioned residual, search
@@ -190,6 +193,7 @@ impl FastSolver {
             scale: [1.0; 4],
             history: None,
             colliders: None,
+            resting: Vec::new(),
             held: Vec::new(),
             cg: Default::default(),
             cg_scale: [1.0; 4],
@@ -229,6 +233,7 @@ impl FastSolver {
             0
         };
         self.cg = std::array::from_fn(|_| vec![Lanes4::default(); n]);
+        self.resting = vec![None; n];
         self.colliders = colliders;
         self
     }
@@ -294,12 +299,24 @@ impl FastSolver {
     /// The first iterate: the inertial target y, except for particles resting on a collider at
     /// the start of the step, which start where they are (so friction sees their whole slip).
     fn initial_guess(&mut self) {
-        for ((p, y), x0) in self.pos.iter_mut().zip(&self.y).zip(&self.x0) {
-            let resting = self
-                .colliders
-                .as_ref()
-                .is_some_and(|c| contact::resting_on(c, *x0, *x0).is_some());
-            *p = if resting { Lanes4::from_vec3(*x0) } else { *y };
+        let Some(colliders) = &self.colliders else {
+            self.pos.copy_from_slice(&self.y);
+            return;
+        };
+        for (((p, y), x0), resting) in self
+            .pos
+            .iter_mut()
+            .zip(&self.y)
+            .zip(&self.x0)
+            .zip(&mut self.resting)
+        {
+            *resting = contact::resting_on(colliders, *x0, *x0);
+            *p = if resting.is_some() {
+                Lanes4::from_vec3(*x0)
+            } else {
+                *resting = contact::resting_on(colliders, y.xyz(), *x0);
+                *y
+            };
         }
     }
 
@@ -311,11 +328,11 @@ impl FastSolver {
             return 0;
         };
         let mut resting = 0;
-        for (i, ((r, p), x0)) in self.res.iter_mut().zip(&self.pos).zip(&self.x0).enumerate() {
-            if let Some(surface) = contact::resting_on(colliders, p.xyz(), *x0) {
+        for (i, (r, surface)) in self.res.iter_mut().zip(&self.resting).enumerate() {
+            if let Some(surface) = surface {
                 resting += 1;
                 let mut force = r.xyz();
-                let hold = contact::contact_reaction(colliders.friction, &surface, &mut force);
+                let hold = contact::contact_reaction(colliders.friction, surface, &mut force);
                 if hold != Hold::Free {
                     *r = Lanes4::from_vec3(force);
                     self.held.push((i as u32, hold));
@@ -330,9 +347,10 @@ impl FastSolver {
         let Some(colliders) = &self.colliders else {
             return;
         };
-        for (p, x0) in self.pos.iter_mut().zip(&self.x0) {
+        for ((p, x0), resting) in self.pos.iter_mut().zip(&self.x0).zip(&mut self.resting) {
             let mut q = p.xyz();
-            if contact::push_out(colliders, &mut q, *x0) {
+            *resting = contact::push_out(colliders, &mut q, *x0);
+            if q != p.xyz() {
                 *p = Lanes4::from_vec3(q);
             }
         }

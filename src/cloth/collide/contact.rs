@@ -23,35 +23,49 @@ use glam::DVec3;
 use super::{Colliders, SurfacePoint};
 use crate::cloth::system::ReducedSystem;
 
-/// Moves `p` out of every collider along the surface normal to the thickness. Returns true when
-/// it had to move.
+/// Moves `p` out of every collider along the surface normal to the thickness, and returns what
+/// [`resting_on`] says of its final position (re-asked only when `p` moved, else read off the
+/// same queries).
 #[inline]
-pub fn push_out(colliders: &Colliders, p: &mut DVec3, x0: DVec3) -> bool {
-    let t = colliders.thickness;
+pub fn push_out(colliders: &Colliders, p: &mut DVec3, x0: DVec3) -> Option<SurfacePoint> {
+    let (t, touch) = (colliders.thickness, touch_distance(colliders));
     let mut moved = false;
+    let mut resting = None;
     for shape in &colliders.shapes {
-        let reach = t + p.distance(x0);
-        if let Some(SurfacePoint { distance, normal }) = shape.contact(*p, x0, reach) {
-            if distance < t {
-                *p += normal * (t - distance);
-                moved = true;
-            }
+        let Some(surface) = shape.contact(*p, x0, touch + p.distance(x0)) else {
+            continue;
+        };
+        if surface.distance < t {
+            *p += surface.normal * (t - surface.distance);
+            moved = true;
+        } else if surface.distance <= touch && resting.is_none() {
+            resting = Some(surface);
         }
     }
-    moved
+    if moved {
+        resting_on(colliders, *p, x0)
+    } else {
+        resting
+    }
 }
 
 /// The collider surface `p` rests on: the first collider it is within the thickness of (up to a
 /// relative round-off allowance), as seen from `x0`, the start of the step.
 #[inline]
 pub fn resting_on(colliders: &Colliders, p: DVec3, x0: DVec3) -> Option<SurfacePoint> {
-    let t = colliders.thickness;
-    let touch = t * (1.0 + 1e-9) + 1e-12;
+    let touch = touch_distance(colliders);
     colliders.shapes.iter().find_map(|shape| {
         shape
             .contact(p, x0, touch + p.distance(x0))
             .filter(|s| s.distance <= touch)
     })
+}
+
+/// The thickness plus a relative round-off allowance: a particle pushed out to the thickness
+/// counts as resting there.
+#[inline]
+fn touch_distance(colliders: &Colliders) -> f64 {
+    colliders.thickness * (1.0 + 1e-9) + 1e-12
 }
 
 /// How a collider holds a particle resting on it during a linear solve.
