@@ -553,50 +553,67 @@ impl Lanes4 {
     }
 }
 
-macro_rules! lanewise {
-    ($tr:ident, $f:ident, $op:tt) => {
-        impl std::ops::$tr for Lanes4 {
+/// The lane-wise arithmetic of a padded right-hand side type `$t` with scalar `$s`: `+`, `−`,
+/// `*` lane by lane, `*` by a scalar, negation, `+=` and `−=`.
+macro_rules! lane_ops {
+    ($t:ident, $s:ty) => {
+        impl std::ops::Add for $t {
             type Output = Self;
             #[inline(always)]
-            fn $f(self, o: Self) -> Self {
-                Lanes4(std::array::from_fn(|k| self.0[k] $op o.0[k]))
+            fn add(self, o: Self) -> Self {
+                $t(std::array::from_fn(|k| self.0[k] + o.0[k]))
+            }
+        }
+
+        impl std::ops::Sub for $t {
+            type Output = Self;
+            #[inline(always)]
+            fn sub(self, o: Self) -> Self {
+                $t(std::array::from_fn(|k| self.0[k] - o.0[k]))
+            }
+        }
+
+        impl std::ops::Mul for $t {
+            type Output = Self;
+            #[inline(always)]
+            fn mul(self, o: Self) -> Self {
+                $t(std::array::from_fn(|k| self.0[k] * o.0[k]))
+            }
+        }
+
+        impl std::ops::Mul<$s> for $t {
+            type Output = Self;
+            #[inline(always)]
+            fn mul(self, l: $s) -> Self {
+                $t(self.0.map(|v| v * l))
+            }
+        }
+
+        impl std::ops::Neg for $t {
+            type Output = Self;
+            #[inline(always)]
+            fn neg(self) -> Self {
+                $t(self.0.map(|v| -v))
+            }
+        }
+
+        impl std::ops::AddAssign for $t {
+            #[inline(always)]
+            fn add_assign(&mut self, o: Self) {
+                *self = *self + o;
+            }
+        }
+
+        impl std::ops::SubAssign for $t {
+            #[inline(always)]
+            fn sub_assign(&mut self, o: Self) {
+                *self = *self - o;
             }
         }
     };
 }
-lanewise!(Add, add, +);
-lanewise!(Sub, sub, -);
-lanewise!(Mul, mul, *);
-
-impl std::ops::Mul<f64> for Lanes4 {
-    type Output = Self;
-    #[inline(always)]
-    fn mul(self, l: f64) -> Self {
-        Lanes4(self.0.map(|v| v * l))
-    }
-}
-
-impl std::ops::Neg for Lanes4 {
-    type Output = Self;
-    #[inline(always)]
-    fn neg(self) -> Self {
-        Lanes4(self.0.map(|v| -v))
-    }
-}
-
-impl std::ops::AddAssign for Lanes4 {
-    #[inline(always)]
-    fn add_assign(&mut self, o: Self) {
-        *self = *self + o;
-    }
-}
-
-impl std::ops::SubAssign for Lanes4 {
-    #[inline(always)]
-    fn sub_assign(&mut self, o: Self) {
-        *self = *self - o;
-    }
-}
+lane_ops!(Lanes4, f64);
+lane_ops!(Lanes4f, f32);
 
 impl Lanes<f64> for Lanes4 {
     const ZERO: Self = Lanes4([0.0; 4]);
@@ -645,36 +662,6 @@ impl Lanes4f {
     }
 }
 
-impl std::ops::Sub for Lanes4f {
-    type Output = Self;
-    #[inline(always)]
-    fn sub(self, o: Self) -> Self {
-        Lanes4f(std::array::from_fn(|k| self.0[k] - o.0[k]))
-    }
-}
-
-impl std::ops::Neg for Lanes4f {
-    type Output = Self;
-    #[inline(always)]
-    fn neg(self) -> Self {
-        Lanes4f(self.0.map(|v| -v))
-    }
-}
-
-impl std::ops::AddAssign for Lanes4f {
-    #[inline(always)]
-    fn add_assign(&mut self, o: Self) {
-        *self = Lanes4f(std::array::from_fn(|k| self.0[k] + o.0[k]));
-    }
-}
-
-impl std::ops::SubAssign for Lanes4f {
-    #[inline(always)]
-    fn sub_assign(&mut self, o: Self) {
-        *self = *self - o;
-    }
-}
-
 impl Lanes<f32> for Lanes4f {
     const ZERO: Self = Lanes4f([0.0; 4]);
     #[inline(always)]
@@ -683,7 +670,7 @@ impl Lanes<f32> for Lanes4f {
     }
     #[inline(always)]
     fn scale(self, l: f32) -> Self {
-        Lanes4f(self.0.map(|v| v * l))
+        self * l
     }
     #[inline(always)]
     fn flush(self) -> Self {
