@@ -318,19 +318,11 @@ fn scene_file_errors_name_the_file_the_job_and_the_key() {
     );
 }
 
-#[test]
-fn a_scene_runs_its_jobs_and_reports() {
-    let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("scene.toml");
-    std::fs::write(
-        &scene,
-        format!(
-            "[[cloth]]\nname = \"lab\"\npreset = \"lab-cloth\"\nframes = 5\noutput = \"out/lab.glb\"\n\n[[cloth]]\nname = \"plane\"\ninput = \"{}\"\nframes = 3\npin = [\"box:-1,-1,-1,1,1,-0.49\"]\nbend_stiffness = 0\noutput = \"out/plane.gltf\"\n",
-            mesh("plane_30x30.obj").display()
-        ),
-    )
-    .unwrap();
-    let report = dir.path().join("run.json");
+/// Writes `text` to the scene file `scene`, runs it with `--report` beside it and returns the
+/// report (the run must succeed).
+fn run_scene(scene: &Path, text: &str) -> serde_json::Value {
+    std::fs::write(scene, text).unwrap();
+    let report = scene.with_extension("json");
     let (code, err) = scenebake([
         "run",
         scene.to_str().unwrap(),
@@ -338,12 +330,25 @@ fn a_scene_runs_its_jobs_and_reports() {
         report.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{err}");
+    serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap()
+}
+
+#[test]
+fn a_scene_runs_its_jobs_and_reports() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    let r = run_scene(
+        &scene,
+        &format!(
+            "[[cloth]]\nname = \"lab\"\npreset = \"lab-cloth\"\nframes = 5\noutput = \"out/lab.glb\"\n\n[[cloth]]\nname = \"plane\"\ninput = \"{}\"\nframes = 3\npin = [\"box:-1,-1,-1,1,1,-0.49\"]\nbend_stiffness = 0\noutput = \"out/plane.gltf\"\n",
+            mesh("plane_30x30.obj").display()
+        ),
+    );
     assert!(
         dir.path().join("out/lab.glb").exists()
             && dir.path().join("out/plane.gltf").exists()
             && dir.path().join("out/plane.bin").exists()
     );
-    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     let jobs = r["jobs"].as_array().unwrap();
     assert_eq!(jobs.len(), 2);
     assert_eq!(jobs[1]["report"]["frames"], 3);
@@ -353,25 +358,13 @@ fn a_scene_runs_its_jobs_and_reports() {
     );
     // A collider mesh in a scene is found relative to the scene file, like every other path.
     std::fs::copy(mesh("cube_5.obj"), dir.path().join("block.obj")).unwrap();
-    let draped = dir.path().join("drape.toml");
-    std::fs::write(
-        &draped,
-        format!(
+    let r = run_scene(
+        &dir.path().join("drape.toml"),
+        &format!(
             "[[cloth]]\nname = \"drape\"\ninput = \"{}\"\nframes = 3\ncollider = [\"mesh:block.obj\", \"plane:0,1,0,-2\"]\nwind = \"1,0,0\"\noutput = \"out/drape.glb\"\n",
             mesh("plane_30x30.obj").display()
         ),
-    )
-    .unwrap();
-    let drape_report = dir.path().join("drape.json");
-    let (code, err) = scenebake([
-        "run",
-        draped.to_str().unwrap(),
-        "--report",
-        drape_report.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let r: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&drape_report).unwrap()).unwrap();
+    );
     let env = &r["jobs"][0]["report"]["environment"];
     assert_eq!(env["colliders"].as_array().unwrap().len(), 2, "{env}");
     assert!(
