@@ -2,7 +2,7 @@
 # Blender 3.4 cloth baseline on the shipped garments (see docs/garments.md).
 # Runs one case at a time (timings are wall and CPU seconds; the machine's load is recorded in
 # each JSON). Usage: sh benches/blender_baseline.sh [CASE...]   (default: all cases)
-# Cases: skirt skirt-bake skirt-physical skirt8k skirt8k-physical skirt-draped dress skirt-sphere
+# Cases: skirt skirt-step skirt-physical skirt8k skirt8k-physical skirt-draped dress skirt-sphere
 set -e
 cd "$(dirname "$0")/.."
 OUT=benches/blender_results
@@ -15,7 +15,7 @@ WAIST=-0.2,0.999,-0.2,0.2,1.001,0.2
 run() {
     case "$1" in
     skirt) blender_cloth meshes/garments/circle_skirt.obj --pin-box $WAIST --frames 30 --out $OUT/circle_skirt.json ;;
-    skirt-bake) blender_cloth meshes/garments/circle_skirt.obj --pin-box $WAIST --frames 30 --bake-op --snapshots 0 --out $OUT/circle_skirt_bake.json ;;
+    skirt-step) blender_cloth meshes/garments/circle_skirt.obj --pin-box $WAIST --frames 30 --step --snapshots 0 --out $OUT/circle_skirt_step.json ;;
     skirt-physical) blender_cloth meshes/garments/circle_skirt.obj --pin-box $WAIST --frames 30 --mass-per-area 0.2 --out $OUT/circle_skirt_0.2kgm2.json ;;
     skirt8k) blender_cloth meshes/garments/skirt8K.obj --pin-box $WAIST --frames 30 --out $OUT/skirt8K.json ;;
     skirt8k-physical) blender_cloth meshes/garments/skirt8K.obj --pin-box $WAIST --frames 30 --mass-per-area 0.2 --out $OUT/skirt8K_0.2kgm2.json ;;
@@ -25,5 +25,5 @@ run() {
     *) echo "unknown case $1" >&2; exit 2 ;;
     esac
 }
-if [ $# -eq 0 ]; then set -- skirt skirt-bake skirt-physical skirt8k skirt8k-physical skirt-draped dress skirt-sphere; fi
+if [ $# -eq 0 ]; then set -- skirt skirt-step skirt-physical skirt8k skirt8k-physical skirt-draped dress skirt-sphere; fi
 for c in "$@"; do run "$c"; done

@@ -24,8 +24,11 @@ What it does:
   --quality/--tension override them;
 - optional static colliders (collision modifier, default settings): a UV sphere and/or an OBJ
   imported the same way;
-- steps the scene frame by frame (Blender frame 1 is the rest state, our frame 0; frame k is Blender
-  frame k+1), which fills the cloth cache exactly like a bake, timing each step;
+- bakes the cloth cache with bpy.ops.ptcache.bake_all (what the Bake button does), timing the whole
+  bake and each frame (a frame_change_post handler stamps the clock as each frame is done), then
+  reads the cached frames (Blender frame 1 is the rest state, our frame 0; our frame k is Blender
+  frame k+1). With --step it instead calls scene.frame_set frame by frame, which simulates the
+  same frames (identical positions) and times each call;
 - writes JSON: the settings, the import check, the machine load, the wall time of the bake and
   per frame, and per frame the lowest vertex height (min y), the hem drop (min y at frame 0 minus
   min y now), the mean drop of the hem vertices (those within 1 mm of the lowest height at frame
@@ -84,9 +87,9 @@ def parse_args():
     g.add_argument("--mass-per-area", type=float, default=None, metavar="KG_PER_M2",
                    help="areal density; vertex mass = density * area / vertices")
     ap.add_argument("--self-collision", action="store_true")
-    ap.add_argument("--bake-op", action="store_true",
-                    help="bake with bpy.ops.ptcache.bake_all first and time that, then read the "
-                         "cached frames (default: step frame by frame, timing each step)")
+    ap.add_argument("--step", action="store_true",
+                    help="simulate by scene.frame_set frame by frame, timing each call (default: "
+                         "bpy.ops.ptcache.bake_all, then read the cached frames)")
     ap.add_argument("--snapshots", default=None,
                     help="frames whose positions are written [0,5,10,20,30,... up to --frames]")
     try:
@@ -157,6 +160,26 @@ def positions(obj, depsgraph):
             out.append((v.x, v.y, v.z))
         return out
     return [tuple(flat[i : i + 3]) for i in range(0, len(flat), 3)]
+
+
+def cpu_jiffies():
+    """(busy, total) clock ticks of all cores from /proc/stat, or None."""
+    try:
+        with open("/proc/stat") as f:
+            vals = [int(w) for w in f.readline().split()[1:]]
+    except (OSError, ValueError):
+        return None
+    idle = vals[3] + (vals[4] if len(vals) > 4 else 0)
+    return sum(vals) - idle, sum(vals)
+
+
+def busy_cores(start, wall):
+    """Average number of busy cores (every process) since `start`, over `wall` seconds."""
+    end = cpu_jiffies()
+    if start is None or end is None or wall <= 0:
+        return None
+    hz = os.sysconf("SC_CLK_TCK")
+    return (end[0] - start[0]) / hz / wall
 
 
 def loadavg():
@@ -286,15 +309,33 @@ def main():
     step_cpu = []
     bake_op = None
     scene.frame_set(1)
-    if a.bake_op:
+    cpu_others_start = cpu_jiffies()
+    if not a.step:
+        stamps = []
+
+        def stamp(scn, *_):
+            stamps.append((scn.frame_current, time.perf_counter(), time.process_time()))
+
+        bpy.app.handlers.frame_change_post.append(stamp)
         c0, t0 = time.process_time(), time.perf_counter()
         with bpy.context.temp_override(scene=scene):
             bpy.ops.ptcache.bake_all(bake=True)
         bake_op = {"wall_seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0}
+        bpy.app.handlers.frame_change_post.remove(stamp)
+        # frame_change_post runs once per baked frame (Blender frames 2..N+1): time between stamps
+        marks = [(0.0, 0.0)] + [(w - t0, c - c0) for f, w, c in stamps if 2 <= f <= a.frames + 1]
+        if len(marks) == a.frames + 1:
+            bake_op["per_frame_seconds"] = [marks[k + 1][0] - marks[k][0] for k in range(a.frames)]
+            bake_op["per_frame_cpu_seconds"] = [marks[k + 1][1] - marks[k][1] for k in range(a.frames)]
+        else:
+            bake_op["per_frame_seconds"] = bake_op["per_frame_cpu_seconds"] = None
+        bake_op["frame_change_stamps"] = [f for f, _, _ in stamps]
         bake_op["seconds_per_frame"] = bake_op["wall_seconds"] / a.frames
+        bake_op["busy_cores"] = busy_cores(cpu_others_start, bake_op["wall_seconds"])
         if not mod.point_cache.is_baked:
             raise SystemExit("blender_cloth.py: bpy.ops.ptcache.bake_all did not bake the cloth cache")
     t_all = time.perf_counter()
+    cpu_loop_start = cpu_jiffies()
     for f in range(0, a.frames + 1):
         c0, t0 = time.process_time(), time.perf_counter()
         scene.frame_set(f + 1)
@@ -333,6 +374,7 @@ def main():
         print(f"frame {f:3d}: {0 if f == 0 else t1 - t0:7.3f} s  min y {min_y:.4f}  drop {min_y0 - min_y:.4f} m  "
               f"stretch {100 * stretch:6.2f} %  compression {100 * compress:6.2f} %", flush=True)
     wall = time.perf_counter() - t_all
+    loop_busy = busy_cores(cpu_loop_start, wall)
 
     finite = all(math.isfinite(c) for p in pos for c in p)
     step_sorted = sorted(step_times)
@@ -343,7 +385,9 @@ def main():
             "cpu_seconds_per_frame": bake_op["cpu_seconds"] / a.frames,
             "bake_wall_seconds": bake_op["wall_seconds"],
             "bake_cpu_seconds": bake_op["cpu_seconds"],
-            "per_frame_seconds": None,
+            "per_frame_seconds": bake_op["per_frame_seconds"],
+            "per_frame_cpu_seconds": bake_op["per_frame_cpu_seconds"],
+            "busy_cores": bake_op["busy_cores"],
             "cache_read_seconds": step_times,
         }
     else:
@@ -358,10 +402,13 @@ def main():
             "max_seconds_per_frame": step_sorted[-1],
             "per_frame_seconds": step_times,
             "per_frame_cpu_seconds": step_cpu,
+            "busy_cores": loop_busy,
         }
     timing["note"] = ("wall = elapsed time (includes waiting for the CPU on a loaded machine); cpu = "
-                      "process time of all of Blender's threads. Frame-by-frame times include "
-                      "reading the evaluated positions (a few ms).")
+                      "process time of all of Blender's threads; busy_cores = how many of the "
+                      "machine's cores were busy (all processes, from /proc/stat) during the timed "
+                      "part, of machine.cpus. With --step, frame times include reading the "
+                      "evaluated positions (a few ms).")
     timing["loop_wall_seconds"] = wall
     result = {
         "tool": "benches/blender_cloth.py",
