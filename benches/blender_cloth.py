@@ -22,8 +22,9 @@ What it does:
   at 30 frames per second, self-collision off, object collision on; --mass or --mass-per-area
   (kg/m², spread evenly over the vertices, as Blender's vertex mass is one value for all) and
   --quality/--tension override them;
-- optional static colliders (collision modifier, default settings): a UV sphere and/or an OBJ
-  imported the same way;
+- optional static colliders (collision modifier, default settings unless --collider-thickness):
+  a UV sphere (64 x 32 segments) and/or an OBJ imported the same way; --collision-distance sets
+  the cloth's minimum distance to them;
 - bakes the cloth cache with bpy.ops.ptcache.bake_all (what the Bake button does), timing the whole
   bake and each frame (a frame_change_post handler stamps the clock as each frame is done), then
   reads the cached frames (Blender frame 1 is the rest state, our frame 0; our frame k is Blender
@@ -32,8 +33,9 @@ What it does:
 - writes JSON: the settings, the import check, the machine load, the wall time of the bake and
   per frame, and per frame the lowest vertex height (min y), the hem drop (min y at frame 0 minus
   min y now), the mean drop of the hem vertices (those within 1 mm of the lowest height at frame
-  0), the 1-minute load average, the largest edge stretch and compression (edge length over rest length, minus 1;
-  edges from the OBJ's faces, rest = frame 0), and the vertex positions at the snapshot frames.
+  0), the 1-minute load average, the largest edge stretch and compression (edge length over rest
+  length, minus 1; edges from the OBJ's faces, rest = frame 0), how many edges are stretched or
+  shrunk by more than 10 %, and the vertex positions at the snapshot frames.
 
 Exit status: 0 on success, 1 on a failure (named on stderr), 2 on bad options.
 """
@@ -87,6 +89,10 @@ def parse_args():
     g.add_argument("--mass-per-area", type=float, default=None, metavar="KG_PER_M2",
                    help="areal density; vertex mass = density * area / vertices")
     ap.add_argument("--self-collision", action="store_true")
+    ap.add_argument("--collision-distance", type=float, default=None, metavar="M",
+                    help="cloth's minimum distance to colliders [Blender: 0.015 m]")
+    ap.add_argument("--collider-thickness", type=float, default=None, metavar="M",
+                    help="colliders' outer thickness [Blender: 0.02 m]")
     ap.add_argument("--step", action="store_true",
                     help="simulate by scene.frame_set frame by frame, timing each call (default: "
                          "bpy.ops.ptcache.bake_all, then read the cached frames)")
@@ -256,6 +262,8 @@ def main():
     if pinned:
         cs.vertex_group_mass = "pin"
     mod.collision_settings.use_self_collision = a.self_collision
+    if a.collision_distance is not None:
+        mod.collision_settings.distance_min = a.collision_distance
     mod.point_cache.frame_start = 1
     mod.point_cache.frame_end = a.frames + 1
     settings = {
@@ -280,10 +288,14 @@ def main():
         bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=r, location=(x, y, z))
         s = bpy.context.active_object
         s.modifiers.new("Collision", "COLLISION")
+        if a.collider_thickness is not None:
+            s.collision.thickness_outer = a.collider_thickness
         colliders.append({"sphere": [x, y, z, r], "thickness_outer": s.collision.thickness_outer})
     for path in a.collider_obj:
         c = import_obj(path)
         c.modifiers.new("Collision", "COLLISION")
+        if a.collider_thickness is not None:
+            c.collision.thickness_outer = a.collider_thickness
         colliders.append({"obj": path, "vertices": len(c.data.vertices),
                           "thickness_outer": c.collision.thickness_outer})
 
@@ -294,13 +306,16 @@ def main():
     def measure(pos):
         ys = [p[1] for p in pos]
         stretch = compress = 0.0
+        over = 0
         for (i, j), r0 in zip(edges, rest):
             s = math.dist(pos[i], pos[j]) / r0 - 1.0
             if s > stretch:
                 stretch = s
             if s < compress:
                 compress = s
-        return min(ys), stretch, compress
+            if abs(s) > 0.1:
+                over += 1
+        return min(ys), stretch, compress, over
 
     # --- simulate, frame by frame (Blender frame f + 1 is our frame f)
     frames = []
@@ -350,7 +365,7 @@ def main():
         if f == 0:
             d0 = max(max(abs(p - q) for p, q in zip(u, v)) for u, v in zip(pos, file_verts))
             import_check["frame_0_max_abs_difference_m"] = d0
-        min_y, stretch, compress = measure(pos)
+        min_y, stretch, compress, over = measure(pos)
         if f == 0:
             min_y0 = min_y
             # the hem: the vertices within 1 mm of the lowest height at frame 0
@@ -366,6 +381,7 @@ def main():
             "hem_mean_drop_m": hem_mean_drop,
             "max_edge_stretch": stretch,
             "max_edge_compression": compress,
+            "edges_beyond_10_percent": over,
             "max_pin_displacement_m": pin_dev,
             "loadavg_1min": (loadavg() or [None])[0],
         })
