@@ -121,6 +121,9 @@ fn degenerate_faces_and_zero_length_edges_are_skipped_with_warnings() {
             "3",
             "--pin",
             "index:0",
+            // The labs' springs: a bending spring joins the two coincident opposite vertices.
+            "--stiffness",
+            "1000",
             "--report",
             report.to_str().unwrap(),
         ]);

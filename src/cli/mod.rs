@@ -62,6 +62,7 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
     match &cli.command {
         Command::Cloth(args) => {
             let outcome = run_cloth(args, "cloth", cli.quiet)?;
+            print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
             }
@@ -69,6 +70,7 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
         }
         Command::Ik(args) => {
             let outcome = run_ik(args, "ik", cli.quiet)?;
+            print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
             }
@@ -147,16 +149,34 @@ pub fn write_report(path: &Path, value: &serde_json::Value) -> anyhow::Result<()
         .with_context(|| "cannot write the report".to_string())
 }
 
+/// Prints the report's `warnings` on standard error, one line each (also with `--quiet`: a
+/// step above its tolerance or a repaired input is never silent).
+pub fn print_warnings(o: &Outcome) {
+    if let Some(list) = o.report["warnings"].as_array() {
+        for w in list.iter().filter_map(|w| w.as_str()) {
+            eprintln!("warning: {}: {w}", o.name);
+        }
+    }
+}
+
 /// The one-line summary printed after a job.
 pub fn summary_line(o: &Outcome) -> String {
     let r = &o.report;
     let extra = match o.kind {
         "cloth" => format!(
-            " ({} particles, {} springs, {} pinned; {:.2} ms/frame)",
+            " ({} particles, {} springs, {} pinned; {:.2} ms/frame; {} of {} frames within \
+             tolerance {})",
             r["particles"],
             r["springs"],
             r["pinned"],
-            r["ms_per_frame"].as_f64().unwrap_or(0.0)
+            r["ms_per_frame"].as_f64().unwrap_or(0.0),
+            o.frames
+                - r["unconverged_frames"]
+                    .as_array()
+                    .map_or(0, |a| a.len())
+                    .min(o.frames),
+            o.frames,
+            r["tolerance"]
         ),
         "ik" => format!(
             " ({} joints, {} solver, {} of {} targets reached, {} unreachable, {:.1} iterations/frame)",

@@ -11,7 +11,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{anyhow, bail, Context};
 use clap::{Args, CommandFactory, Parser};
 
-use super::{progress, run_cloth, run_ik, summary_line, write_report, Cli, Command, Outcome};
+use super::{
+    print_warnings, progress, run_cloth, run_ik, summary_line, write_report, Cli, Command, Outcome,
+};
 
 /// Run the jobs of a scene file.
 #[derive(Debug, Args)]
@@ -74,6 +76,10 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                 job.kind
             )
         })?;
+        print_warnings(&Outcome {
+            name: job.name.clone(),
+            ..outcome.clone()
+        });
         if !quiet {
             eprintln!(
                 "[{}/{}] {}",
