@@ -329,7 +329,7 @@ def main():
         stamps = []
 
         def stamp(scn, *_):
-            stamps.append((scn.frame_current, time.perf_counter(), time.process_time()))
+            stamps.append((scn.frame_current, time.perf_counter(), time.process_time(), loadavg()))
 
         bpy.app.handlers.frame_change_post.append(stamp)
         c0, t0 = time.process_time(), time.perf_counter()
@@ -338,13 +338,14 @@ def main():
         bake_op = {"wall_seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0}
         bpy.app.handlers.frame_change_post.remove(stamp)
         # frame_change_post runs once per baked frame (Blender frames 2..N+1): time between stamps
-        marks = [(0.0, 0.0)] + [(w - t0, c - c0) for f, w, c in stamps if 2 <= f <= a.frames + 1]
+        marks = [(0.0, 0.0)] + [(w - t0, c - c0) for f, w, c, _ in stamps if 2 <= f <= a.frames + 1]
+        bake_load = {f: la[0] for f, _, _, la in stamps if la}
         if len(marks) == a.frames + 1:
             bake_op["per_frame_seconds"] = [marks[k + 1][0] - marks[k][0] for k in range(a.frames)]
             bake_op["per_frame_cpu_seconds"] = [marks[k + 1][1] - marks[k][1] for k in range(a.frames)]
         else:
             bake_op["per_frame_seconds"] = bake_op["per_frame_cpu_seconds"] = None
-        bake_op["frame_change_stamps"] = [f for f, _, _ in stamps]
+        bake_op["frame_change_stamps"] = [f for f, _, _, _ in stamps]
         bake_op["seconds_per_frame"] = bake_op["wall_seconds"] / a.frames
         bake_op["busy_cores"] = busy_cores(cpu_others_start, bake_op["wall_seconds"])
         if not mod.point_cache.is_baked:
@@ -383,7 +384,8 @@ def main():
             "max_edge_compression": compress,
             "edges_beyond_10_percent": over,
             "max_pin_displacement_m": pin_dev,
-            "loadavg_1min": (loadavg() or [None])[0],
+            # the 1-minute load average when this frame was simulated
+            "loadavg_1min": bake_load.get(f + 1) if bake_op else (loadavg() or [None])[0],
         })
         if f in a.snapshots:
             snapshots[str(f)] = [[round(c, 6) for c in p] for p in pos]
