@@ -5,6 +5,7 @@
 # Cases: skirt skirt-step skirt-physical skirt8k skirt8k-physical skirt-draped dress skirt-sphere
 #        skirt-draped-thin dress-thin (collision margins 2 mm instead of Blender's 15 + 20 mm)
 #        skirt-2k skirt-32k (the circle skirt remeshed coarser and finer: resolution dependence)
+#        skirt-table (the circle skirt raised 0.15 m, unpinned, dropped on meshes/table.obj)
 set -e
 cd "$(dirname "$0")/.."
 OUT=benches/blender_results
@@ -29,9 +30,11 @@ run() {
         blender_cloth $OUT/circle_skirt_2k.obj --pin-box $WAIST --frames 30 --out $OUT/circle_skirt_2k.json ;;
     skirt-32k) python3 scripts/make_skirt.py --vertices 32000 --out $OUT/circle_skirt_32k.obj
         blender_cloth $OUT/circle_skirt_32k.obj --pin-box $WAIST --frames 10 --out $OUT/circle_skirt_32k.json ;;
+    skirt-table) python3 scripts/place_obj.py meshes/garments/circle_skirt.obj $OUT/circle_skirt_raised.obj --translate 0,0.15,0
+        blender_cloth $OUT/circle_skirt_raised.obj --collider-obj meshes/table.obj --frames 30 --out $OUT/circle_skirt_on_table.json ;;
     dress) blender_cloth meshes/garments/dress_draped.obj --collider-obj meshes/garments/mannequin.obj --frames 30 --out $OUT/dress_on_mannequin.json ;;
     *) echo "unknown case $1" >&2; exit 2 ;;
     esac
 }
-if [ $# -eq 0 ]; then set -- skirt skirt-step skirt-physical skirt8k skirt8k-physical skirt-draped dress skirt-sphere skirt-draped-thin dress-thin skirt-2k skirt-32k; fi
+if [ $# -eq 0 ]; then set -- skirt skirt-step skirt-physical skirt8k skirt8k-physical skirt-draped dress skirt-sphere skirt-draped-thin dress-thin skirt-2k skirt-32k skirt-table; fi
 for c in "$@"; do run "$c"; done
