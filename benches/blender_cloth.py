@@ -23,8 +23,10 @@ What it does:
   (kg/m², spread evenly over the vertices, as Blender's vertex mass is one value for all) and
   --quality/--tension override them;
 - optional static colliders (collision modifier, default settings unless --collider-thickness):
-  a UV sphere (64 x 32 segments) and/or an OBJ imported the same way; --collision-distance sets
-  the cloth's minimum distance to them;
+  a UV sphere (64 x 32 segments) and/or an OBJ imported the same way (its objects joined into
+  one; its bounding box checked against the file's); --collision-distance sets the cloth's
+  minimum distance to them. The garment OBJ must hold one object (`o`), as its vertex order
+  is kept;
 - bakes the cloth cache with bpy.ops.ptcache.bake_all (what the Bake button does), timing the whole
   bake and each frame (a frame_change_post handler stamps the clock as each frame is done), then
   reads the cached frames (Blender frame 1 is the rest state, our frame 0; our frame k is Blender
@@ -138,19 +140,31 @@ def read_obj(path):
     return verts, tris
 
 
-def import_obj(path):
-    """Import with the identity axis mapping; return the new mesh object."""
+def import_obj(path, join=False):
+    """Import with the identity axis mapping; return the new mesh object.
+
+    The importer makes one object per `o` in the file; with join=True (colliders) they are
+    joined into one, otherwise (the garment, whose vertex order matters) there must be one.
+    """
     before = set(bpy.data.objects)
     # forward +Y, up +Z: Blender's own frame, so the file's (x, y, z) is kept as is.
     bpy.ops.wm.obj_import(filepath=path, forward_axis="Y", up_axis="Z")
     new = [o for o in bpy.data.objects if o not in before and o.type == "MESH"]
-    if len(new) != 1:
+    if not new or (len(new) > 1 and not join):
         raise SystemExit(f"blender_cloth.py: {path}: expected one mesh object, the importer made {len(new)}")
+    for o in new:
+        # Bake any object transform into the mesh (the importer leaves it at identity here).
+        o.data.transform(o.matrix_world)
+        o.matrix_world.identity()
     obj = new[0]
-    # Bake any object transform into the mesh (the importer leaves it at identity here).
-    obj.data.transform(obj.matrix_world)
-    obj.matrix_world.identity()
+    if len(new) > 1:
+        with bpy.context.temp_override(active_object=obj, selected_editable_objects=new):
+            bpy.ops.object.join()
     return obj
+
+
+def bounds(points):
+    return [[min(p[k] for p in points) for k in range(3)], [max(p[k] for p in points) for k in range(3)]]
 
 
 def positions(obj, depsgraph):
@@ -292,11 +306,19 @@ def main():
             s.collision.thickness_outer = a.collider_thickness
         colliders.append({"sphere": [x, y, z, r], "thickness_outer": s.collision.thickness_outer})
     for path in a.collider_obj:
-        c = import_obj(path)
+        c = import_obj(path, join=True)
         c.modifiers.new("Collision", "COLLISION")
         if a.collider_thickness is not None:
             c.collision.thickness_outer = a.collider_thickness
-        colliders.append({"obj": path, "vertices": len(c.data.vertices),
+        # The collider must sit where the file puts it: compare bounding boxes.
+        file_b = bounds(read_obj(path)[0])
+        blender_b = bounds([tuple(v.co) for v in c.data.vertices])
+        dev = max(abs(x - y) for u, v in zip(file_b, blender_b) for x, y in zip(u, v))
+        if dev > 1e-5:
+            raise SystemExit(f"blender_cloth.py: {path}: the imported collider's bounds {blender_b} "
+                             f"differ from the file's {file_b}")
+        colliders.append({"obj": path, "vertices": len(c.data.vertices), "bounds": blender_b,
+                          "bounds_max_abs_difference_m": dev,
                           "thickness_outer": c.collision.thickness_outer})
 
     # --- edges (from the OBJ's faces) and their rest lengths (frame 0)
@@ -329,7 +351,7 @@ def main():
         stamps = []
 
         def stamp(scn, *_):
-            stamps.append((scn.frame_current, time.perf_counter(), time.process_time()))
+            stamps.append((scn.frame_current, time.perf_counter(), time.process_time(), loadavg()))
 
         bpy.app.handlers.frame_change_post.append(stamp)
         c0, t0 = time.process_time(), time.perf_counter()
@@ -338,13 +360,14 @@ def main():
         bake_op = {"wall_seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0}
         bpy.app.handlers.frame_change_post.remove(stamp)
         # frame_change_post runs once per baked frame (Blender frames 2..N+1): time between stamps
-        marks = [(0.0, 0.0)] + [(w - t0, c - c0) for f, w, c in stamps if 2 <= f <= a.frames + 1]
+        marks = [(0.0, 0.0)] + [(w - t0, c - c0) for f, w, c, _ in stamps if 2 <= f <= a.frames + 1]
+        bake_load = {f: la[0] for f, _, _, la in stamps if la}
         if len(marks) == a.frames + 1:
             bake_op["per_frame_seconds"] = [marks[k + 1][0] - marks[k][0] for k in range(a.frames)]
             bake_op["per_frame_cpu_seconds"] = [marks[k + 1][1] - marks[k][1] for k in range(a.frames)]
         else:
             bake_op["per_frame_seconds"] = bake_op["per_frame_cpu_seconds"] = None
-        bake_op["frame_change_stamps"] = [f for f, _, _ in stamps]
+        bake_op["frame_change_stamps"] = [f for f, _, _, _ in stamps]
         bake_op["seconds_per_frame"] = bake_op["wall_seconds"] / a.frames
         bake_op["busy_cores"] = busy_cores(cpu_others_start, bake_op["wall_seconds"])
         if not mod.point_cache.is_baked:
@@ -383,7 +406,8 @@ def main():
             "max_edge_compression": compress,
             "edges_beyond_10_percent": over,
             "max_pin_displacement_m": pin_dev,
-            "loadavg_1min": (loadavg() or [None])[0],
+            # the 1-minute load average when this frame was simulated
+            "loadavg_1min": bake_load.get(f + 1) if bake_op else (loadavg() or [None])[0],
         })
         if f in a.snapshots:
             snapshots[str(f)] = [[round(c, 6) for c in p] for p in pos]
