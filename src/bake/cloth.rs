@@ -403,6 +403,18 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
 
     let (mesh, springs, mut pinned): (Mesh, SpringSet, Vec<bool>) = match &job.source {
         ClothSource::LabCloth { resolution } => {
+            if let Some(option) = [
+                ("--object", job.object.is_some()),
+                ("--mesh", job.mesh.is_some()),
+            ]
+            .into_iter()
+            .find_map(|(o, given)| given.then_some(o))
+            {
+                return Err(Error::option(
+                    option,
+                    "picks part of an input file; the lab-cloth preset has none",
+                ));
+            }
             if job.scale != 1.0 || job.translate != DVec3::ZERO {
                 let option = if job.scale != 1.0 {
                     "--scale"
@@ -450,6 +462,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             (mesh, springs, vec![false; n])
         }
     };
+    let size_warning =
+        crate::export::estimate::check_frames(frames, mesh.render_vertices.len(), job.normals)?;
     for (flag, extra) in pinned.iter_mut().zip(pinned_flags(&mesh, &job.pins)?) {
         *flag |= extra;
     }
@@ -466,7 +480,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         shear: springs.count(SpringKind::Shear),
         bend: springs.count(SpringKind::Bend),
     };
-    let model = ClothModel::new(mesh, springs, mass, pinned)?;
+    let mut model = ClothModel::new(mesh, springs, mass, pinned)?;
+    model.warnings.extend(size_warning);
     let colliders = prepare_colliders(job, &model)?;
     let wind = prepare_wind(job)?;
     let params = BakeParams {
@@ -592,6 +607,31 @@ pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
         return Err(Error::io(
             path,
             std::io::Error::other("is a directory, not a mesh file"),
+        ));
+    }
+    // Options that select inside one format only.
+    let gltf = matches!(ext.as_deref(), Some("gltf") | Some("glb"));
+    if job.mesh.is_some() && !gltf {
+        return Err(Error::option(
+            "--mesh",
+            format!(
+                "picks a mesh of a .gltf/.glb input, and {} is not one (for an OBJ, --object NAME picks an object or group)",
+                path.display()
+            ),
+        ));
+    }
+    if job.object.is_some() && ext.as_deref() != Some("obj") {
+        return Err(Error::option(
+            "--object",
+            format!(
+                "picks an object or group of an .obj input, and {} is not one{}",
+                path.display(),
+                if gltf {
+                    " (for a glTF, --mesh NAME picks a mesh)"
+                } else {
+                    ""
+                }
+            ),
         ));
     }
     match ext.as_deref() {
