@@ -299,18 +299,46 @@ def decompose(m):
 
 
 def vertex_normals(positions, tris):
-    """Area-weighted unit vertex normals, welding vertices at the same position (UV seams)."""
+    """Unit vertex normals, each face's unit normal weighted by its corner angle at the vertex
+    (as Blender computes them), welding vertices at the same position (UV seams)."""
     key = np.round(positions * 1e6).astype(np.int64)
     _, weld = np.unique(key, axis=0, return_inverse=True)
     weld = weld.reshape(-1)
-    a, b, c = (positions[tris[:, k]] for k in range(3))
-    fn = np.cross(b - a, c - a)
+    p = [positions[tris[:, k]] for k in range(3)]
+    fn = np.cross(p[1] - p[0], p[2] - p[0])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
     acc = np.zeros((weld.max() + 1, 3))
     for k in range(3):
-        np.add.at(acc, weld[tris[:, k]], fn)
+        a = p[(k + 1) % 3] - p[k]
+        b = p[(k + 2) % 3] - p[k]
+        a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-300)
+        b /= np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-300)
+        angle = np.arccos(np.clip(np.sum(a * b, axis=1), -1.0, 1.0))
+        np.add.at(acc, weld[tris[:, k]], fn * angle[:, None])
     n = acc[weld]
     norm = np.linalg.norm(n, axis=1, keepdims=True)
     return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+
+
+def file_normals(g, node, anim, t):
+    """The NORMAL a viewer applies at time t (base + weighted NORMAL deltas), normalised, or
+    None when the mesh has no NORMAL."""
+    n = g.doc["nodes"][node]
+    mesh = g.doc["meshes"][n["mesh"]]
+    weights = g.sample(anim, t).get((node, "weights"))
+    if weights is None:
+        weights = np.array(mesh.get("weights", []), dtype=np.float64)
+    out = []
+    for prim in mesh["primitives"]:
+        if "NORMAL" not in prim["attributes"]:
+            return None
+        v = g.accessor(prim["attributes"]["NORMAL"]).copy()
+        for w, target in zip(weights, prim.get("targets", [])):
+            if w != 0.0 and "NORMAL" in target:
+                v += w * g.accessor(target["NORMAL"])
+        out.append(v)
+    v = np.concatenate(out)
+    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
 
 
 def main():

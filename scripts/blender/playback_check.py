@@ -12,7 +12,9 @@ mesh, it finds the Blender object made from it and, at several frames of the sce
   checked frame;
 - for meshes with morph targets: the share of faces Blender shades smooth, and the angle
   between Blender's shading normals (loop normals) and the normals of the file's evaluated
-  shape (area-weighted, seams welded), 95th percentile and largest.
+  shape (corner-angle weighted, seams welded), 95th percentile and largest; and, for
+  information, the same angle for the NORMAL the file itself carries at that time (what
+  three.js and engines shade with).
 
 With `switch_actions`, every other action of an armature is played for a frame before the
 bake's action is made active again, and the bake is checked once more: a bake that leaves a
@@ -94,10 +96,12 @@ def check(path, objects, fps_import, frames=5, tolerance=2e-3, max_angle=3.0, mi
     checked = sorted({int(round(start + (end - start) * k / max(frames - 1, 1)))
                       for k in range(frames)})
     depsgraph = bpy.context.evaluated_depsgraph_get()
+    file_angles = []
 
     def compare(node, obj, match, label_frames, tag=""):
         worst = 0.0
         angles = []
+        file_angles.clear()
         for f in label_frames:
             scene.frame_set(f)
             t = f / fps_import
@@ -107,10 +111,16 @@ def check(path, objects, fps_import, frames=5, tolerance=2e-3, max_angle=3.0, mi
             d = float(np.max(np.linalg.norm(got - ref[match], axis=1))) if len(got) else 0.0
             worst = max(worst, d)
             if morph:
-                n_ref = to_blender(gltf_eval.vertex_normals(g.evaluate(node, anim, t)[0], tris))
+                n_ref = gltf_eval.vertex_normals(g.evaluate(node, anim, t)[0], tris)
                 n_got, vi = blender_loop_normals(ev, me)
-                dots = np.sum(n_got * n_ref[match[vi]], axis=1)
+                dots = np.sum(n_got * to_blender(n_ref)[match[vi]], axis=1)
                 angles.append(np.degrees(np.arccos(np.clip(dots, -1, 1))))
+                n_file = gltf_eval.file_normals(g, node, anim, t)
+                if n_file is not None:
+                    used = np.unique(tris)  # vertices no triangle uses are never shaded
+                    d = np.degrees(np.arccos(np.clip(
+                        np.sum(n_file[used] * n_ref[used], axis=1), -1, 1)))
+                    file_angles.append(d)
             ev.to_mesh_clear()
         return worst, (np.concatenate(angles) if angles else None)
 
@@ -161,7 +171,11 @@ def check(path, objects, fps_import, frames=5, tolerance=2e-3, max_angle=3.0, mi
             p95 = float(np.percentile(angles, 95)) if angles is not None and len(angles) else 0.0
             amax = float(np.max(angles)) if angles is not None and len(angles) else 0.0
             line += (f"; {100 * smooth:.1f} % of {len(polys)} faces smooth; shading normals vs "
-                     f"the evaluated shape: p95 {p95:.2f}°, max {amax:.2f}°")
+                     f"the evaluated shape's: p95 {p95:.2f}°, max {amax:.2f}°")
+            if file_angles:
+                fa = np.concatenate(file_angles)
+                line += (f"; the file's own NORMAL (what engines apply) vs the same: p95 "
+                         f"{np.percentile(fa, 95):.2f}°, max {fa.max():.2f}°")
             if smooth < min_smooth:
                 failures.append(f"{label}: {100 * smooth:.1f} % of faces smooth "
                                 f"(want >= {100 * min_smooth:g} %)")

@@ -313,7 +313,7 @@ fn morph_targets(
         let normals = base_normals.map(|base| {
             let (n, e) = delta_accessor(
                 b,
-                &difference(frames.normals(k), base),
+                &super::shading::normal_deltas(frames.normals(k), frames.normals(0), base),
                 options.sparse,
                 false,
             );

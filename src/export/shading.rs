@@ -8,11 +8,12 @@
 //! animation.
 //!
 //! [`base_normals`] therefore leans the frame-0 normal of each such vertex by [`LEAN_DEGREES`]
-//! (towards the side its normal turns to during the bake), but only for vertices whose normal
-//! changes during the bake: a face that never deforms is shaded right when flat. The targets'
-//! NORMAL deltas are taken from these base normals, so viewers that apply them (three.js, game
-//! engines) still get each baked frame's exact normals; at frame 0 they see the lean, far below
-//! what shading can show.
+//! (towards the side its normal turns to during the bake, if it turns), so every face imports
+//! smooth and Blender's recomputed normals follow the baked shape. The targets' NORMAL deltas
+//! ([`normal_deltas`]) are taken from these base normals, so viewers that apply them (three.js,
+//! game engines) get each baked frame's exact normals, except where a vertex's normal is still
+//! exactly its frame-0 normal: there the delta stays zero (so still regions stay sparse) and the
+//! viewer shows the lean, far below what shading can show.
 
 use glam::{DVec3, Vec3};
 
@@ -60,13 +61,50 @@ pub fn base_normals(mesh: &Mesh, frames: &RenderFrames) -> Vec<Vec3> {
             for k in 1..frames.frame_count() {
                 turn += frames.normals(k)[v].as_dvec3();
             }
-            let tangent = turn - n * turn.dot(n);
+            let mut tangent = turn - n * turn.dot(n);
             if tangent.length() < 1e-9 * (frames.frame_count() as f64) {
-                // Never turns (within f32): a face that never deforms shades right flat.
-                return n0[v];
+                // Never turns: any direction will do (the face shades the same either way).
+                tangent = n.any_orthonormal_vector();
             }
             (n + tangent.normalize() * lean).normalize().as_vec3()
         })
+        .collect()
+}
+
+/// Corner-angle-weighted unit vertex normals of a triangle soup over `positions` (+Y where a
+/// vertex touches no triangle of non-zero area): each triangle's unit normal counts with the
+/// angle of its corner at the vertex. This is how Blender (3.4 to 5.x) computes the normals it
+/// shades with, and it does not depend on how a surface is triangulated; writing the same
+/// normals makes every viewer shade a baked frame alike.
+pub fn angle_weighted_normals(positions: &[DVec3], triangles: &[[u32; 3]], out: &mut Vec<DVec3>) {
+    out.clear();
+    out.resize(positions.len(), DVec3::ZERO);
+    for t in triangles {
+        let p = t.map(|i| positions[i as usize]);
+        let Some(n) = (p[1] - p[0]).cross(p[2] - p[0]).try_normalize() else {
+            continue;
+        };
+        for c in 0..3 {
+            let (a, b) = (p[(c + 1) % 3] - p[c], p[(c + 2) % 3] - p[c]);
+            let (Some(a), Some(b)) = (a.try_normalize(), b.try_normalize()) else {
+                continue;
+            };
+            out[t[c] as usize] += n * a.dot(b).clamp(-1.0, 1.0).acos();
+        }
+    }
+    for n in out.iter_mut() {
+        *n = n.try_normalize().unwrap_or(DVec3::Y);
+    }
+}
+
+/// The NORMAL deltas of a target: `normals - base` per vertex, except 0 where `normals` equals
+/// `frame0` exactly (the vertex keeps its base normal, leaned by at most [`LEAN_DEGREES`]).
+pub fn normal_deltas(normals: &[Vec3], frame0: &[Vec3], base: &[Vec3]) -> Vec<Vec3> {
+    normals
+        .iter()
+        .zip(frame0)
+        .zip(base)
+        .map(|((n, n0), b)| if n == n0 { Vec3::ZERO } else { *n - *b })
         .collect()
 }
 
@@ -146,8 +184,32 @@ mod tests {
     }
 
     #[test]
-    fn a_sheet_that_never_deforms_keeps_its_normals() {
+    fn angle_weights_ignore_how_a_face_is_split() {
+        // A unit cube's corner: three faces, one of them split into two triangles at the
+        // corner. Area weighting tilts the normal towards the split face; angle weighting gives
+        // the symmetric (1,1,1)/√3 whatever the split.
+        let p = vec![
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::Y,
+            DVec3::Z,
+            DVec3::new(1.0, 1.0, 0.0),
+        ];
+        // Faces with outward normals -z (split at the corner into two), -x, -y.
+        let tris = [[0, 2, 4], [0, 4, 1], [0, 3, 2], [0, 1, 3]];
+        let mut out = Vec::new();
+        angle_weighted_normals(&p, &tris, &mut out);
+        let want = -DVec3::ONE.normalize();
+        assert!(out[0].distance(want) < 1e-12, "{}", out[0]);
+    }
+
+    #[test]
+    fn a_sheet_that_never_deforms_still_imports_smooth() {
         let (mesh, frames) = sheet(0.0);
-        assert_eq!(base_normals(&mesh, &frames), frames.normals(0));
+        let base = base_normals(&mesh, &frames);
+        assert_eq!(
+            smooth_faces(&mesh, frames.positions(0), &base),
+            mesh.render_triangles.len()
+        );
     }
 }
