@@ -4,7 +4,7 @@
 //! order, rest translation = offset), a skinned arm mesh (a tapered box per bone, each rigidly
 //! weighted to its bone's joint) at the scene root, a pen-tip marker under the end effector, the
 //! target path as a LINES mesh, and the drawn trail as LINE_STRIP pieces revealed one after
-//! another by STEP scale keys. For a rig the input document is written back with only one
+//! another by STEP scale keys (half a frame before the frame that draws each piece's end). For a rig the input document is written back with only one
 //! animation added.
 //!
 //! Quaternions are written (x, y, z, w), normalised in `f32` and sign-continuous (each key is
@@ -406,7 +406,10 @@ pub fn write_chain_gltf(
                     json::mesh::Mode::LineStrip,
                 )],
             );
-            let reveal = (end as f64 / frames.fps) as f32;
+            // Revealed half a frame before the frame that draws its last point, so every
+            // viewer shows it from that frame on (a STEP key exactly on a frame is at the mercy
+            // of f32 rounding of the key time).
+            let reveal = ((end as f64 - 0.5) / frames.fps) as f32;
             let hidden = end > 0;
             let node = b.root.push(json::Node {
                 name: Some(format!("trail_{:03}", pieces.len())),
