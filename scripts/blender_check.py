@@ -38,6 +38,17 @@ Options (after the `--`):
   --frame F                 frame to evaluate and render (default: the middle
                             of the scene's frame range, which is fitted to the
                             union of the imported actions' frame ranges)
+  --playback                compare what Blender evaluates at --check-frames N
+                            frames (default 5) with an independent numpy
+                            reading of the file playing its first animation
+                            (scripts/blender/playback_check.py): largest
+                            distance <= --tolerance (2e-3); morph meshes:
+                            >= 99 % smooth faces, shading normals p95 <= 3°
+  --switch-actions          with --playback: play a rig's other actions, switch
+                            back to the bake's and check again
+  --helper                  import with scripts/blender/scenebake_import.py
+                            and check the fps, frame range, smooth shading and
+                            active action it set against asset.extras
 
 Exit status: 0 if every file imported and met every expectation; 1 otherwise
 (the failures are listed, naming the file and what failed); 2 on bad options.
