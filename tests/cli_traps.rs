@@ -332,3 +332,57 @@ fn open_says_when_blender_is_missing() {
     let (_, _, err) = run(dir.path(), &["open", "missing.glb"]);
     assert_eq!(err, "error: missing.glb: no such file\n");
 }
+
+/// A Z-up OBJ (Bullet's cloth_z_up, a sheet in z = 0) with `--up z` arrives lying in y = 0:
+/// the glTF's base positions are the file's `v` lines turned (x, y, z) → (x, z, −y).
+#[test]
+fn up_z_turns_a_z_up_input_to_y_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = crate_path("meshes/cloth_z_up.obj");
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth",
+            &s(&obj),
+            "--up",
+            "z",
+            "--frames",
+            "2",
+            "-o",
+            "up.glb",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    let (doc, buffers, _) = gltf::import(dir.path().join("up.glb")).unwrap();
+    let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+    let got: Vec<[f32; 3]> = prim
+        .reader(|b| Some(&buffers[b.index()]))
+        .read_positions()
+        .unwrap()
+        .collect();
+    let key = |p: [f64; 3]| p.map(|c| (c * 1e5).round() as i64);
+    let mut want: Vec<[i64; 3]> = std::fs::read_to_string(&obj)
+        .unwrap()
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            key([v[0], v[2], -v[1]])
+        })
+        .collect();
+    want.sort();
+    want.dedup();
+    let mut got_keys: Vec<[i64; 3]> = got.iter().map(|p| key(p.map(f64::from))).collect();
+    got_keys.sort();
+    got_keys.dedup();
+    assert_eq!(got_keys, want);
+    assert!(
+        got.iter().all(|p| p[1].abs() < 1e-6),
+        "the sheet lies in y = 0"
+    );
+    fails_exactly(
+        dir.path(),
+        &["cloth", "--preset", "lab-cloth", "--up", "z", "-o", "x.glb"],
+        "error: invalid value for --up: places an input file; the lab-cloth preset keeps the labs' coordinates",
+    );
+}

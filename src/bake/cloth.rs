@@ -126,6 +126,9 @@ pub struct ClothJob {
     /// `--translate X,Y,Z` (m): …moved by this offset, before anything else (pins and colliders
     /// are in the placed coordinates).
     pub translate: DVec3,
+    /// `--up z`: the input file is Z-up (Blender's and many OBJ exporters' convention) and is
+    /// turned to glTF's Y-up first, (x, y, z) → (x, z, −y), before `--scale` and `--translate`.
+    pub up_z: bool,
     /// `--collider SPEC` (repeatable); mesh paths as given (relative to the working directory).
     pub colliders: Vec<ColliderSpec>,
     /// `--thickness` (m): how far particles stay from colliders; default a quarter of the mean
@@ -177,6 +180,7 @@ impl ClothJob {
             sparse: SparseMode::Auto,
             scale: 1.0,
             translate: DVec3::ZERO,
+            up_z: false,
             colliders: Vec::new(),
             thickness: None,
             friction: DEFAULT_FRICTION,
@@ -415,9 +419,11 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
                     "picks part of an input file; the lab-cloth preset has none",
                 ));
             }
-            if job.scale != 1.0 || job.translate != DVec3::ZERO {
+            if job.scale != 1.0 || job.translate != DVec3::ZERO || job.up_z {
                 let option = if job.scale != 1.0 {
                     "--scale"
+                } else if job.up_z {
+                    "--up"
                 } else {
                     "--translate"
                 };
@@ -506,11 +512,16 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     })
 }
 
-/// Applies `--scale` and `--translate` to a loaded body.
+/// Applies `--up`, `--scale` and `--translate` to a loaded body.
 fn place(mesh: &mut Mesh, job: &ClothJob) -> Result<()> {
     let scale = positive("--scale", job.scale)?;
     if !job.translate.is_finite() {
         return Err(Error::option("--translate", "must be finite"));
+    }
+    if job.up_z {
+        for p in &mut mesh.positions {
+            *p = DVec3::new(p.x, p.z, -p.y);
+        }
     }
     if scale != 1.0 || job.translate != DVec3::ZERO {
         for p in &mut mesh.positions {
