@@ -510,7 +510,7 @@ def render_still(path, width, height, mesh_objs):
 
 def helper_summary(info):
     return (f"{info['fps']:g} fps, frames {info['frame_start']}-{info['frame_end']}, "
-            f"active actions {', '.join(info['actions']) or 'none'}, "
+            f"active actions {', '.join(info['actions']) or 'none'} ({info['fcurves']} fcurves), "
             f"{info['smooth_faces']} of {info['faces']} faces smooth")
 
 
@@ -529,6 +529,8 @@ def helper_failures(path, info, objects):
     if (scene.frame_start, scene.frame_end) != (start, end):
         failures.append(f"--helper: scene frames {scene.frame_start}-{scene.frame_end}, "
                         f"the bake's are {start}-{end}")
+    if info["actions"] and info["fcurves"] == 0:
+        failures.append("--helper: the bake's actions hold no fcurves")
     if info["smooth_faces"] != info["faces"]:
         failures.append(f"--helper: {info['faces'] - info['smooth_faces']} faces left flat")
     # Every object the bake animates has the bake's action active.

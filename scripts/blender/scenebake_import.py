@@ -206,6 +206,7 @@ def import_bake(path, camera=True):
         cam = frame_camera(scene, objects, frames)
     scene.frame_set(start)
     return {
+        "fcurves": sum(len(action_fcurves(a)) for a in set(actions)),
         "fps": scene.render.fps / scene.render.fps_base,
         "frame_start": scene.frame_start,
         "frame_end": scene.frame_end,
@@ -235,7 +236,7 @@ def main():
             bpy.data.objects.remove(obj)
     info = import_bake(path, camera=camera)
     print(f"{PROG}: {path}: {info['fps']:g} fps, frames {info['frame_start']}-{info['frame_end']}, "
-          f"active actions {', '.join(info['actions']) or 'none'}, "
+          f"active actions {', '.join(info['actions']) or 'none'} ({info['fcurves']} fcurves), "
           f"{info['smooth_faces']} of {info['faces']} faces smooth, camera {info['camera']}",
           flush=True)
 
