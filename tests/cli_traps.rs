@@ -386,3 +386,34 @@ fn up_z_turns_a_z_up_input_to_y_up() {
         "error: invalid value for --up: places an input file; the lab-cloth preset keeps the labs' coordinates",
     );
 }
+
+/// Ctrl-C in `run` after a job finished: the message names the file that job replaced.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_names_the_outputs_it_already_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("two.toml"),
+        "[[cloth]]\nname = \"quick\"\npreset = \"lab-cloth\"\nframes = 2\noutput = \"quick.glb\"\n\n[[cloth]]\nname = \"long\"\npreset = \"lab-cloth\"\nresolution = 150\nframes = 5000\noutput = \"long.glb\"\n",
+    )
+    .unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+        .args(["-q", "run", "two.toml"])
+        .current_dir(dir.path())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    assert!(Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130));
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "\ninterrupted: the job being baked wrote nothing, but finished jobs of this run replaced 1 file: quick.glb\n"
+    );
+    assert!(!dir.path().join("long.glb").exists());
+}

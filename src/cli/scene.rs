@@ -93,6 +93,7 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                 ..outcome.clone()
             });
         }
+        super::interrupt::record_written(outcome.files.iter().map(|(f, _)| f.clone()));
         outcomes.push(Outcome {
             name: job.name.clone(),
             ..outcome
