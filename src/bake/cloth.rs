@@ -144,6 +144,9 @@ pub struct ClothJob {
     /// `--translate X,Y,Z` (m): …moved by this offset, before anything else (pins and colliders
     /// are in the placed coordinates).
     pub translate: DVec3,
+    /// `--up z`: the input file is Z-up (Blender's and many OBJ exporters' convention) and is
+    /// turned to glTF's Y-up first, (x, y, z) → (x, z, −y), before `--scale` and `--translate`.
+    pub up_z: bool,
     /// `--collider SPEC` (repeatable); mesh paths as given (relative to the working directory).
     pub colliders: Vec<ColliderSpec>,
     /// `--thickness` (m): how far particles stay from colliders; default a quarter of the mean
@@ -200,6 +203,7 @@ impl ClothJob {
             sparse: SparseMode::Auto,
             scale: 1.0,
             translate: DVec3::ZERO,
+            up_z: false,
             colliders: Vec::new(),
             thickness: None,
             friction: DEFAULT_FRICTION,
@@ -418,7 +422,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         return Err(Error::option(
             material,
             format!(
-                "{springs} sets the labs' symmetric springs (N/m per spring); {material} sets a                  fabric mapped onto the mesh: give one or the other"
+                "{springs} sets the labs' symmetric springs (N/m per spring); {material} sets a \
+                 fabric mapped onto the mesh: give one or the other"
             ),
         ));
     }
@@ -480,9 +485,23 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     let mut bending = Vec::new();
     let (mesh, springs, mut pinned): (Mesh, SpringSet, Vec<bool>) = match &job.source {
         ClothSource::LabCloth { resolution } => {
-            if job.scale != 1.0 || job.translate != DVec3::ZERO {
+            if let Some(option) = [
+                ("--object", job.object.is_some()),
+                ("--mesh", job.mesh.is_some()),
+            ]
+            .into_iter()
+            .find_map(|(o, given)| given.then_some(o))
+            {
+                return Err(Error::option(
+                    option,
+                    "picks part of an input file; the lab-cloth preset has none",
+                ));
+            }
+            if job.scale != 1.0 || job.translate != DVec3::ZERO || job.up_z {
                 let option = if job.scale != 1.0 {
                     "--scale"
+                } else if job.up_z {
+                    "--up"
                 } else {
                     "--translate"
                 };
@@ -542,6 +561,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     let material = (!bending.is_empty()
         || (springs_option.is_none() && !is_preset && mesh.tets.is_empty()))
     .then_some(material);
+    let size_warning =
+        crate::export::estimate::check_frames(frames, mesh.render_vertices.len(), job.normals)?;
     for (flag, extra) in pinned.iter_mut().zip(pinned_flags(&mesh, &job.pins)?) {
         *flag |= extra;
     }
@@ -561,7 +582,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         shear: springs.count(SpringKind::Shear),
         bend: springs.count(SpringKind::Bend),
     };
-    let model = ClothModel::new(mesh, springs, mass, pinned)?.with_bending(bending)?;
+    let mut model = ClothModel::new(mesh, springs, mass, pinned)?.with_bending(bending)?;
+    model.warnings.extend(size_warning);
     let colliders = prepare_colliders(job, &model)?;
     let wind = prepare_wind(job)?;
     let params = BakeParams {
@@ -621,11 +643,16 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
     })
 }
 
-/// Applies `--scale` and `--translate` to a loaded body.
+/// Applies `--up`, `--scale` and `--translate` to a loaded body.
 fn place(mesh: &mut Mesh, job: &ClothJob) -> Result<()> {
     let scale = positive("--scale", job.scale)?;
     if !job.translate.is_finite() {
         return Err(Error::option("--translate", "must be finite"));
+    }
+    if job.up_z {
+        for p in &mut mesh.positions {
+            *p = DVec3::new(p.x, p.z, -p.y);
+        }
     }
     if scale != 1.0 || job.translate != DVec3::ZERO {
         for p in &mut mesh.positions {
@@ -722,6 +749,31 @@ pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
         return Err(Error::io(
             path,
             std::io::Error::other("is a directory, not a mesh file"),
+        ));
+    }
+    // Options that select inside one format only.
+    let gltf = matches!(ext.as_deref(), Some("gltf") | Some("glb"));
+    if job.mesh.is_some() && !gltf {
+        return Err(Error::option(
+            "--mesh",
+            format!(
+                "picks a mesh of a .gltf/.glb input, and {} is not one (for an OBJ, --object NAME picks an object or group)",
+                path.display()
+            ),
+        ));
+    }
+    if job.object.is_some() && ext.as_deref() != Some("obj") {
+        return Err(Error::option(
+            "--object",
+            format!(
+                "picks an object or group of an .obj input, and {} is not one{}",
+                path.display(),
+                if gltf {
+                    " (for a glTF, --mesh NAME picks a mesh)"
+                } else {
+                    ""
+                }
+            ),
         ));
     }
     match ext.as_deref() {

@@ -142,6 +142,11 @@ pub struct ClothArgs {
     /// in the placed coordinates.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub translate: Option<DVec3>,
+    /// The input file's up axis: z turns a Z-up file (Blender, many OBJ exporters) to glTF's
+    /// Y-up, (x, y, z) → (x, z, −y), before --scale and --translate; pins, colliders and
+    /// --gravity are in the turned (Y-up) coordinates.
+    #[arg(long, value_enum, default_value_t = UpArg::Y)]
+    pub up: UpArg,
     /// A static collider (repeatable): plane:NX,NY,NZ,D (the half-space n·x ≤ D is solid, e.g.
     /// plane:0,1,0,0 is the ground y = 0), sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1, or
     /// mesh:FILE.obj (closed meshes are solid, open ones two-sided). Written into the glTF as
@@ -170,6 +175,15 @@ pub struct ClothArgs {
     /// Seed of the gusts (the same seed gives the same bake).
     #[arg(long, default_value_t = 0, value_name = "N")]
     pub seed: u64,
+}
+
+/// `--up` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum UpArg {
+    /// Y up (glTF's convention; kept as it is).
+    Y,
+    /// Z up (turned to Y up).
+    Z,
 }
 
 /// `--vat-mode` values.
@@ -322,6 +336,7 @@ impl ClothArgs {
         };
         job.scale = self.scale;
         job.translate = self.translate.unwrap_or(DVec3::ZERO);
+        job.up_z = self.up == UpArg::Z;
         job.colliders = self.colliders.clone();
         job.thickness = self.thickness;
         job.friction = self.friction;

@@ -5,6 +5,7 @@ pub mod cloth;
 pub mod ik;
 pub mod inspect;
 pub mod interrupt;
+pub mod open;
 pub mod progress;
 pub mod scene;
 
@@ -36,6 +37,9 @@ pub enum Command {
     Run(scene::RunArgs),
     /// Describe a glTF/GLB file and check the invariants scenebake's exports promise.
     Inspect(inspect::InspectArgs),
+    /// Open a bake in Blender, set up to play it (fps, frame range, smooth shading, the bake's
+    /// action, a camera).
+    Open(open::OpenArgs),
 }
 
 /// One finished job, for summaries.
@@ -53,6 +57,8 @@ pub struct Outcome {
     pub seconds: f64,
     /// Bytes written.
     pub bytes: u64,
+    /// Every file written (report excluded) with its size in bytes.
+    pub files: Vec<(PathBuf, u64)>,
     /// The job's own report.
     pub report: serde_json::Value,
 }
@@ -65,6 +71,7 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
             print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
+                print_warnings(&outcome);
             }
             Ok(())
         }
@@ -73,11 +80,13 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
             print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
+                print_warnings(&outcome);
             }
             Ok(())
         }
         Command::Run(args) => scene::run(args, cli.quiet),
         Command::Inspect(args) => inspect::run(args),
+        Command::Open(args) => open::run(args),
     }
 }
 
@@ -106,6 +115,7 @@ pub fn run_cloth(args: &cloth::ClothArgs, label: &str, quiet: bool) -> anyhow::R
         frames: report.frames,
         seconds: start.elapsed().as_secs_f64(),
         bytes: report.output_bytes,
+        files: sizes(&report.output),
         report: json,
     })
 }
@@ -121,13 +131,14 @@ pub fn run_ik(args: &ik::IkArgs, label: &str, quiet: bool) -> anyhow::Result<Out
     });
     bar.finish_and_clear();
     let report = report?;
-    let bytes = report
+    let written: Vec<PathBuf> = report
         .files
         .iter()
         .filter(|f| Some(f.as_path()) != job.report.as_deref())
-        .filter_map(|f| std::fs::metadata(f).ok())
-        .map(|m| m.len())
-        .sum();
+        .cloned()
+        .collect();
+    let files = sizes(&written);
+    let bytes = files.iter().map(|(_, b)| b).sum();
     Ok(Outcome {
         kind: "ik",
         name: args
@@ -138,8 +149,38 @@ pub fn run_ik(args: &ik::IkArgs, label: &str, quiet: bool) -> anyhow::Result<Out
         frames: report.frames,
         seconds: start.elapsed().as_secs_f64(),
         bytes,
+        files,
         report: serde_json::to_value(&report)?,
     })
+}
+
+/// Each file with its size on disk (0 when it cannot be read).
+fn sizes(files: &[PathBuf]) -> Vec<(PathBuf, u64)> {
+    files
+        .iter()
+        .map(|f| (f.clone(), std::fs::metadata(f).map_or(0, |m| m.len())))
+        .collect()
+}
+
+/// Prints a job's report warnings on stderr, one `warning:` line each.
+pub fn print_warnings(o: &Outcome) {
+    for w in o.report["warnings"].as_array().into_iter().flatten() {
+        if let Some(w) = w.as_str() {
+            eprintln!("warning: {}: {w}", o.name);
+        }
+    }
+}
+
+/// `a.glb (1.2 MB)`, or one such entry per file, comma-separated.
+pub fn files_with_sizes(o: &Outcome) -> String {
+    if o.files.is_empty() {
+        return format!("{} ({})", o.output.display(), progress::bytes(o.bytes));
+    }
+    o.files
+        .iter()
+        .map(|(f, b)| format!("{} ({})", f.display(), progress::bytes(*b)))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Writes a JSON report atomically.
@@ -185,12 +226,11 @@ pub fn summary_line(o: &Outcome) -> String {
         _ => String::new(),
     };
     format!(
-        "{}: baked {} frames{} in {:.2} s; wrote {} ({})",
+        "{}: baked {} frames{} in {:.2} s; wrote {}",
         o.name,
         o.frames,
         extra,
         o.seconds,
-        o.output.display(),
-        progress::bytes(o.bytes)
+        files_with_sizes(o)
     )
 }
