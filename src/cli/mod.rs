@@ -71,7 +71,6 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
             print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
-                print_warnings(&outcome);
             }
             Ok(())
         }
@@ -80,7 +79,6 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
             print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
-                print_warnings(&outcome);
             }
             Ok(())
         }
@@ -160,15 +158,6 @@ fn sizes(files: &[PathBuf]) -> Vec<(PathBuf, u64)> {
         .iter()
         .map(|f| (f.clone(), std::fs::metadata(f).map_or(0, |m| m.len())))
         .collect()
-}
-
-/// Prints a job's report warnings on stderr, one `warning:` line each.
-pub fn print_warnings(o: &Outcome) {
-    for w in o.report["warnings"].as_array().into_iter().flatten() {
-        if let Some(w) = w.as_str() {
-            eprintln!("warning: {}: {w}", o.name);
-        }
-    }
 }
 
 /// `a.glb (1.2 MB)`, or one such entry per file, comma-separated.

@@ -92,10 +92,6 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                     ..outcome.clone()
                 })
             );
-            print_warnings(&Outcome {
-                name: job.name.clone(),
-                ..outcome.clone()
-            });
         }
         super::interrupt::record_written(outcome.files.iter().map(|(f, _)| f.clone()));
         outcomes.push(Outcome {
