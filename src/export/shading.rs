@@ -50,6 +50,13 @@ pub fn base_normals(mesh: &Mesh, frames: &RenderFrames) -> Vec<Vec3> {
     }
     let flat_cos = FLAT_DEGREES.to_radians().cos();
     let lean = LEAN_DEGREES.to_radians().tan();
+    // The sum of each vertex's normals over the bake (frame by frame, in memory order).
+    let mut turns = vec![DVec3::ZERO; count];
+    for k in 1..frames.frame_count() {
+        for (t, n) in turns.iter_mut().zip(frames.normals(k)) {
+            *t += n.as_dvec3();
+        }
+    }
     (0..count)
         .map(|v| {
             let n = n0[v].as_dvec3();
@@ -57,10 +64,7 @@ pub fn base_normals(mesh: &Mesh, frames: &RenderFrames) -> Vec<Vec3> {
                 return n0[v];
             }
             // The direction the normal turns to over the bake, in the tangent plane.
-            let mut turn = DVec3::ZERO;
-            for k in 1..frames.frame_count() {
-                turn += frames.normals(k)[v].as_dvec3();
-            }
+            let turn = turns[v];
             let mut tangent = turn - n * turn.dot(n);
             if tangent.length() < 1e-9 * (frames.frame_count() as f64) {
                 // Never turns: any direction will do (the face shades the same either way).
@@ -81,16 +85,25 @@ pub fn angle_weighted_normals(positions: &[DVec3], triangles: &[[u32; 3]], out: 
     out.resize(positions.len(), DVec3::ZERO);
     for t in triangles {
         let p = t.map(|i| positions[i as usize]);
-        let Some(n) = (p[1] - p[0]).cross(p[2] - p[0]).try_normalize() else {
+        // Edges e[c] = p[c+1] − p[c], normalised once; the corner angles sum to π, so two acos
+        // give all three.
+        let e = [p[1] - p[0], p[2] - p[1], p[0] - p[2]];
+        let Some(n) = e[0].cross(-e[2]).try_normalize() else {
             continue;
         };
-        for c in 0..3 {
-            let (a, b) = (p[(c + 1) % 3] - p[c], p[(c + 2) % 3] - p[c]);
-            let (Some(a), Some(b)) = (a.try_normalize(), b.try_normalize()) else {
-                continue;
-            };
-            out[t[c] as usize] += n * a.dot(b).clamp(-1.0, 1.0).acos();
-        }
+        let (Some(u0), Some(u1), Some(u2)) = (
+            e[0].try_normalize(),
+            e[1].try_normalize(),
+            e[2].try_normalize(),
+        ) else {
+            continue;
+        };
+        let a0 = (-u2.dot(u0)).clamp(-1.0, 1.0).acos();
+        let a1 = (-u0.dot(u1)).clamp(-1.0, 1.0).acos();
+        let a2 = (std::f64::consts::PI - a0 - a1).max(0.0);
+        out[t[0] as usize] += n * a0;
+        out[t[1] as usize] += n * a1;
+        out[t[2] as usize] += n * a2;
     }
     for n in out.iter_mut() {
         *n = n.try_normalize().unwrap_or(DVec3::Y);
