@@ -39,12 +39,16 @@
 //! **Quantisation** (KHR_mesh_quantization). Positions are stored as normalised `int16` in a
 //! local frame: `world = t + s · local`, with the uniform scale `s` and translation `t` on the
 //! cloth's node (uniform, so normals need no correction), chosen so that the base and every
-//! target fit in [-1, 1]. Targets are normalised `int16` too (the node transform scales them
-//! with the base). Normals and their deltas are normalised `int8` when every delta component fits
-//! in [-1, 1] (else `f32`). Vertex attributes keep 4-byte aligned elements (stride 8 for
-//! `int16` VEC3, 4 for `int8` VEC3). `auto` quantises when the measured error stays within the
-//! tolerance, trying up to as many extra targets as still make the file smaller than the `f32`
-//! one; `on` always quantises (the error is reported); `off` never.
+//! target fit in [-1, 1]. Each target is stored normalised to fill [-1, 1] (the refitted weights
+//! then carry its amplitude, still within [0, 1]; the node transform scales targets with the
+//! base), as `int16`, or as `int8` for the targets of smallest amplitude: their rounding bounds
+//! (amplitude · s · √3 / 254 each) are added up to a budget, the tolerance left over by the
+//! `int16` file, doubled while the measured error stays within the tolerance. The base normals
+//! are `int8`; each target's NORMAL deltas are `int8` when every component fits in [-1, 1]
+//! (else `f32`, sparse where smaller). Vertex attributes keep 4-byte aligned elements (stride 8
+//! for `int16` VEC3, 4 for `int8` VEC3). `auto` quantises when the measured error stays within
+//! the tolerance, trying up to half as many extra targets again (the file stays smaller than the
+//! `f32` one); `on` always quantises (the error is reported); `off` never.
 //!
 //! Sparse targets: `f32` targets go through [`super::compact::delta_accessor`] (vertices whose
 //! delta is zero in every frame, such as pins, are exactly zero in every basis vector); quantised
@@ -125,11 +129,16 @@ pub struct BasisOptions {
 /// How the positions and normals are stored.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Quantization {
-    /// Component type of POSITION and its target deltas: `float` or `int16` (normalised).
+    /// Component type of the base POSITION: `float` or `int16` (normalised).
     pub positions: String,
-    /// Component type of NORMAL and its deltas: `float` or `int8` (normalised); `none` without
-    /// normals.
+    /// Targets whose POSITION deltas are normalised int16.
+    pub int16_targets: usize,
+    /// Targets whose POSITION deltas are normalised int8.
+    pub int8_targets: usize,
+    /// Component type of the base NORMAL: `float` or `int8` (normalised); `none` without normals.
     pub normals: String,
+    /// Targets whose NORMAL deltas are normalised int8 (the others are float).
+    pub int8_normal_targets: usize,
     /// The node's uniform scale s (world = t + s · stored), 1 unquantised.
     pub node_scale: f64,
     /// The node's translation t, m.
@@ -218,9 +227,17 @@ struct Candidate {
     base_q: Vec<[i16; 3]>,
     /// Stored target deltas (local units).
     deltas: Vec<Vec<Vec3>>,
-    deltas_q: Vec<Vec<[i16; 3]>>,
+    /// Quantised target deltas, normalised to fill [-1, 1] (the weights carry the amplitude).
+    deltas_q: Vec<StoredDelta>,
     /// Weights of every frame (F × K), in [0, 1].
     weights: Vec<Vec<f32>>,
+}
+
+/// A quantised target's values.
+#[derive(Debug, Clone)]
+enum StoredDelta {
+    I16(Vec<[i16; 3]>),
+    I8(Vec<[i8; 3]>),
 }
 
 /// Encodes `frames` as a basis cache for `path` (see the module documentation).
@@ -313,7 +330,7 @@ pub fn encode_basis_gltf(
     let mut best: Option<(Candidate, Vec<usize>, f64, usize)> = None;
     let mut float_pick: Option<(Candidate, Vec<usize>, f64, usize)> = None;
     for &k in &ks {
-        let float = build(frames, &svd, k, false);
+        let float = build(frames, &svd, k, false, &[]);
         let keys = select_keys(frames, &float, keyframe_tolerance.map(|_| bound), options);
         let (err, worst) = measure(frames, &float, &keys, options.interpolation);
         let fits = err <= bound || basis.size != BasisSize::Auto;
@@ -349,12 +366,52 @@ pub fn encode_basis_gltf(
             (k0 * 3 / 2).min(cap)
         };
         for k in k0..=limit {
-            let q = build(frames, &svd, k, true);
+            let q = build(frames, &svd, k, true, &[]);
             let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
             let (err, worst) = measure(frames, &q, &keys, options.interpolation);
             if err <= bound || basis.quantize == QuantizeMode::On {
                 pick = (q, keys, err, worst);
                 break;
+            }
+        }
+        if pick.0.quantized && pick.2 < bound {
+            // Targets of small amplitude as int8 (half the bytes): the rounding bound of each
+            // is amplitude · s · √3 / 254; take the smallest ones while their bounds add up to
+            // a budget, doubling it while the measured error stays within the tolerance.
+            let (c, k) = (&pick.0, pick.0.k);
+            let step: Vec<f64> = (0..c.k)
+                .map(|t| {
+                    let amplitude = c.weights.iter().map(|w| w[t] as f64).fold(0.0, f64::max);
+                    amplitude * c.scale * 3f64.sqrt() / 254.0
+                })
+                .collect();
+            let mut order: Vec<usize> = (0..k).collect();
+            order.sort_by(|a, b| step[*a].total_cmp(&step[*b]));
+            let mut budget = bound - pick.2;
+            let mut chosen = 0;
+            for _ in 0..6 {
+                let mut int8 = vec![false; k];
+                let mut sum = 0.0;
+                let mut n = 0;
+                for &t in &order {
+                    if sum + step[t] > budget {
+                        break;
+                    }
+                    sum += step[t];
+                    int8[t] = true;
+                    n += 1;
+                }
+                if n > chosen {
+                    let q = build(frames, &svd, k, true, &int8);
+                    let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
+                    let (err, worst) = measure(frames, &q, &keys, options.interpolation);
+                    if err > bound {
+                        break;
+                    }
+                    chosen = n;
+                    pick = (q, keys, err, worst);
+                }
+                budget *= 2.0;
             }
         }
     }
@@ -445,7 +502,8 @@ fn projection_errors(frames: &RenderFrames, svd: &Svd, cap: usize) -> Vec<f64> {
 
 /// Builds the K-target candidate: base and targets from the first K directions mapped so that
 /// weights lie in [0, 1], rounded to what the file stores (quantised or not), weights refitted.
-fn build(frames: &RenderFrames, svd: &Svd, k: usize, quantized: bool) -> Candidate {
+/// `int8[t]` stores target t as int8 (quantised candidates only).
+fn build(frames: &RenderFrames, svd: &Svd, k: usize, quantized: bool, int8: &[bool]) -> Candidate {
     let (f, v) = (frames.frame_count(), frames.vertex_count());
     let k = k.min(svd.directions.len());
     let p0 = frames.positions(0);
@@ -504,11 +562,27 @@ fn build(frames: &RenderFrames, svd: &Svd, k: usize, quantized: bool) -> Candida
     };
     let mut deltas_s = Vec::with_capacity(k);
     let mut deltas_q = Vec::new();
-    for d in &deltas {
+    for (t, d) in deltas.iter().enumerate() {
         if quantized {
-            let q: Vec<[i16; 3]> = d.iter().map(|x| quantize_i16(*x / scale)).collect();
-            deltas_s.push(q.iter().map(|x| dequantize_i16(*x)).collect());
-            deltas_q.push(q);
+            // Fill [-1, 1]: the refitted weights then carry the amplitude (and stay in [0, 1]).
+            let amplitude = d
+                .iter()
+                .map(|x| x.abs().max_element())
+                .fold(0.0f64, f64::max)
+                / scale;
+            let unit = scale * amplitude.max(f64::MIN_POSITIVE);
+            if int8.get(t).copied().unwrap_or(false) {
+                let q: Vec<[i8; 3]> = d
+                    .iter()
+                    .map(|x| quantize_i8((*x / unit).as_vec3()))
+                    .collect();
+                deltas_s.push(q.iter().map(|x| dequantize_i8(*x)).collect());
+                deltas_q.push(StoredDelta::I8(q));
+            } else {
+                let q: Vec<[i16; 3]> = d.iter().map(|x| quantize_i16(*x / unit)).collect();
+                deltas_s.push(q.iter().map(|x| dequantize_i16(*x)).collect());
+                deltas_q.push(StoredDelta::I16(q));
+            }
         } else {
             deltas_s.push(d.iter().map(|x| x.as_vec3()).collect());
         }
@@ -728,12 +802,13 @@ fn select_keys(
 }
 
 /// Base normals and per-target normal deltas fitted to the baked normals given the weights.
-fn fit_normals(frames: &RenderFrames, c: &Candidate) -> (Vec<Vec3>, Vec<Vec<Vec3>>) {
-    let (f, v, k) = (frames.frame_count(), frames.vertex_count(), c.k);
+/// Only the first `j` targets get normal deltas; the others' are zero.
+fn fit_normals(frames: &RenderFrames, c: &Candidate, j: usize) -> (Vec<Vec3>, Vec<Vec<Vec3>>) {
+    let (f, v, k) = (frames.frame_count(), frames.vertex_count(), j.min(c.k));
     let w: Vec<Vec<f64>> = c
         .weights
         .iter()
-        .map(|r| r.iter().map(|x| *x as f64).collect())
+        .map(|r| r[..k].iter().map(|x| *x as f64).collect())
         .collect();
     // Regression on [1, w]: (K+1) × (K+1) normal matrix, shared by every vertex.
     let n1 = k + 1;
@@ -755,7 +830,7 @@ fn fit_normals(frames: &RenderFrames, c: &Candidate) -> (Vec<Vec3>, Vec<Vec<Vec3
     }
     let chol = cholesky(&wtw, k);
     let mut base = vec![Vec3::ZERO; v];
-    let mut deltas = vec![vec![Vec3::ZERO; v]; k];
+    let mut deltas = vec![vec![Vec3::ZERO; v]; c.k];
     for i in 0..v {
         let normal = |j: usize| frames.normals(j)[i].as_dvec3();
         let mut rhs1 = vec![DVec3::ZERO; n1];
@@ -852,31 +927,35 @@ fn write(
         target_bytes: 0,
     };
 
-    // Normals: fitted, then int8 when quantised and every delta fits.
-    let normals = options.normals.then(|| fit_normals(frames, &c));
-    let normals_i8 = c.quantized
-        && normals
-            .as_ref()
-            .is_some_and(|(_, d)| d.iter().flatten().all(|x| x.abs().max_element() <= 1.0));
-    let normals = normals.map(|(nb, nd)| {
-        if normals_i8 {
-            let nb_q: Vec<[i8; 3]> = nb.iter().map(|x| quantize_i8(*x)).collect();
-            let nd_q: Vec<Vec<[i8; 3]>> = nd
-                .iter()
-                .map(|t| t.iter().map(|x| quantize_i8(*x)).collect())
-                .collect();
-            let nb_s = nb_q.iter().map(|x| dequantize_i8(*x)).collect();
-            let nd_s = nd_q
-                .iter()
-                .map(|t| t.iter().map(|x| dequantize_i8(*x)).collect())
-                .collect();
-            (nb_s, nd_s, Some((nb_q, nd_q)))
-        } else {
-            (nb, nd, None)
+    // Normals: fitted; when quantised, the base as int8 and each target's deltas as int8 when
+    // every component fits in [-1, 1] (else f32, sparse where smaller).
+    let normals = options.normals.then(|| {
+        let (nb, nd) = fit_normals(frames, &c, c.k);
+        if !c.quantized {
+            let n = nd.len();
+            return (nb, None, nd, vec![None; n]);
         }
+        let nb_q: Vec<[i8; 3]> = nb.iter().map(|x| quantize_i8(*x)).collect();
+        let nb_s = nb_q.iter().map(|x| dequantize_i8(*x)).collect();
+        let (mut nd_s, mut nd_q) = (Vec::new(), Vec::new());
+        for t in nd {
+            if t.iter().all(|x| x.abs().max_element() <= 1.0) {
+                let q: Vec<[i8; 3]> = t.iter().map(|x| quantize_i8(*x)).collect();
+                nd_s.push(q.iter().map(|x| dequantize_i8(*x)).collect());
+                nd_q.push(Some(q));
+            } else {
+                nd_s.push(t);
+                nd_q.push(None);
+            }
+        }
+        (nb_s, Some(nb_q), nd_s, nd_q)
     });
+    let normals_i8 = normals.as_ref().is_some_and(|n| n.1.is_some());
+    let int8_normal_targets = normals
+        .as_ref()
+        .map_or(0, |n| n.3.iter().filter(|q| q.is_some()).count());
     let (max_normal, mean_normal) = match &normals {
-        Some((nb, nd, _)) => normal_errors(frames, &c, &keys, options.interpolation, nb, nd),
+        Some((nb, _, nd, _)) => normal_errors(frames, &c, &keys, options.interpolation, nb, nd),
         None => (0.0, 0.0),
     };
 
@@ -889,9 +968,9 @@ fn write(
         b.vec3(&c.base, array, true)
     };
     attributes.insert(Valid(json::mesh::Semantic::Positions), positions);
-    if let Some((nb, _, q)) = &normals {
+    if let Some((nb, q, _, _)) = &normals {
         let n = match q {
-            Some((nb_q, _)) => i8_vec3(&mut b, nb_q),
+            Some(nb_q) => i8_vec3(&mut b, nb_q, false),
             None => b.vec3(nb, array, false),
         };
         attributes.insert(Valid(json::mesh::Semantic::Normals), n);
@@ -916,7 +995,10 @@ fn write(
         let start = b.buffer_len();
         let positions = if c.quantized {
             stats.dense_accessors += 1;
-            i16_vec3(&mut b, &c.deltas_q[t], array, true)
+            match &c.deltas_q[t] {
+                StoredDelta::I16(q) => i16_vec3(&mut b, q, array, true),
+                StoredDelta::I8(q) => i8_vec3(&mut b, q, true),
+            }
         } else {
             let (a, e) = delta_accessor(&mut b, &c.deltas[t], options.sparse, true);
             count(&mut stats, e);
@@ -924,10 +1006,10 @@ fn write(
         };
         bytes.target_positions += (b.buffer_len() - start) as u64;
         let start = b.buffer_len();
-        let normals = normals.as_ref().map(|(_, nd, q)| match q {
-            Some((_, nd_q)) => {
+        let normals = normals.as_ref().map(|(_, _, nd, nd_q)| match &nd_q[t] {
+            Some(q) => {
                 stats.dense_accessors += 1;
-                i8_vec3(&mut b, &nd_q[t])
+                i8_vec3(&mut b, q, false)
             }
             None => {
                 let (a, e) = delta_accessor(&mut b, &nd[t], options.sparse, false);
@@ -1028,6 +1110,17 @@ fn write(
             (Some(_), false) => "float",
         }
         .into(),
+        int16_targets: c
+            .deltas_q
+            .iter()
+            .filter(|d| matches!(d, StoredDelta::I16(_)))
+            .count(),
+        int8_targets: c
+            .deltas_q
+            .iter()
+            .filter(|d| matches!(d, StoredDelta::I8(_)))
+            .count(),
+        int8_normal_targets,
         node_scale: c.scale,
         node_translation: c.translation.to_array(),
     };
@@ -1087,8 +1180,9 @@ fn i16_vec3(
     )
 }
 
-/// Normalised int8 VEC3 vertex attribute, each element padded to 4 bytes (stride 4).
-fn i8_vec3(b: &mut GltfBuilder, data: &[[i8; 3]]) -> json::Index<json::Accessor> {
+/// Normalised int8 VEC3 vertex attribute, each element padded to 4 bytes (stride 4); `min_max`
+/// writes bounds in the stored integer values.
+fn i8_vec3(b: &mut GltfBuilder, data: &[[i8; 3]], min_max: bool) -> json::Index<json::Accessor> {
     let bytes: Vec<u8> = data
         .iter()
         .flat_map(|v| [v[0] as u8, v[1] as u8, v[2] as u8, 0])
@@ -1100,7 +1194,7 @@ fn i8_vec3(b: &mut GltfBuilder, data: &[[i8; 3]]) -> json::Index<json::Accessor>
         4,
         json::accessor::ComponentType::I8,
         Some(json::buffer::Target::ArrayBuffer),
-        None,
+        min_max.then(|| super::gltf_doc::bounds_f32(data.iter().map(|v| v.map(|c| c as f32)))),
     )
 }
 
