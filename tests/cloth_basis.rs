@@ -275,6 +275,20 @@ fn quantized_basis_uses_int16_and_stays_within_the_tolerance() {
     );
     assert!((worst - basis.max_error as f32).abs() < 1e-5);
 
+    // inspect reads the quantised file and names its encoding.
+    let info = scenebake::inspect::inspect(&out).unwrap();
+    assert_eq!(info.failures().count(), 0);
+    let e = &info.meshes[0].encoding;
+    assert_eq!(e.kind, "basis");
+    assert!(e.quantized);
+    assert_eq!(e.positions, "i16 normalized");
+    let stored: usize = e.target_positions.iter().map(|(_, n)| n).sum();
+    assert_eq!(stored, basis.targets);
+    assert_eq!(
+        basis.quantization.int8_targets + basis.quantization.int16_targets,
+        basis.targets
+    );
+
     let mut float = job.clone();
     float.quantize = Some(QuantizeMode::Off);
     float.output = dir.path().join("float.gltf");

@@ -44,8 +44,10 @@
 //! base), as `int16`, or as `int8` for the targets of smallest amplitude: their rounding bounds
 //! (amplitude · s · √3 / 254 each) are added up to a budget, the tolerance left over by the
 //! `int16` file, doubled while the measured error stays within the tolerance. The base normals
-//! are `int8`; each target's NORMAL deltas are `int8` when every component fits in [-1, 1]
-//! (else `f32`, sparse where smaller). Vertex attributes keep 4-byte aligned elements (stride 8
+//! are `int8`; each target's NORMAL deltas are `int8` when every component fits in [-1, 1];
+//! the others are `int8` clamped to [-1, 1] when that raises the measured normal error by at
+//! most 2° (largest) and 0.1° (mean) over the unclamped file (always with `--quantize on`),
+//! else `f32` (sparse where smaller). Vertex attributes keep 4-byte aligned elements (stride 8
 //! for `int16` VEC3, 4 for `int8` VEC3). `auto` quantises when the measured error stays within
 //! the tolerance, trying up to half as many extra targets again (the file stays smaller than the
 //! `f32` one); `on` always quantises (the error is reported); `off` never.
@@ -204,6 +206,11 @@ pub struct EncodedBasis {
 /// Padding of each coefficient range before it is mapped onto [0, 1], so that refitted weights
 /// rarely need clamping.
 const RANGE_PAD: f64 = 0.01;
+/// `--quantize auto` clamps normal deltas to int8 when the largest normal error grows by at
+/// most this (degrees)...
+const CLAMP_MAX_DEGREES: f64 = 2.0;
+/// ...and the mean normal error by at most this (degrees).
+const CLAMP_MEAN_DEGREES: f64 = 0.1;
 /// Largest value of a normalised int16.
 const I16: f64 = 32767.0;
 /// Largest value of a normalised int8.
@@ -937,18 +944,41 @@ fn write(
         }
         let nb_q: Vec<[i8; 3]> = nb.iter().map(|x| quantize_i8(*x)).collect();
         let nb_s = nb_q.iter().map(|x| dequantize_i8(*x)).collect();
-        let (mut nd_s, mut nd_q) = (Vec::new(), Vec::new());
-        for t in nd {
-            if t.iter().all(|x| x.abs().max_element() <= 1.0) {
-                let q: Vec<[i8; 3]> = t.iter().map(|x| quantize_i8(*x)).collect();
-                nd_s.push(q.iter().map(|x| dequantize_i8(*x)).collect());
-                nd_q.push(Some(q));
-            } else {
-                nd_s.push(t);
-                nd_q.push(None);
+        // Each target's deltas as int8 where every component fits in [-1, 1]; the others as
+        // int8 clamped when that costs little (measured), else f32.
+        let fits: Vec<bool> = nd
+            .iter()
+            .map(|t| t.iter().all(|x| x.abs().max_element() <= 1.0))
+            .collect();
+        let encode = |clamp: bool| {
+            let (mut nd_s, mut nd_q) = (Vec::new(), Vec::new());
+            for (t, fit) in nd.iter().zip(&fits) {
+                if *fit || clamp {
+                    let q: Vec<[i8; 3]> = t.iter().map(|x| quantize_i8(*x)).collect();
+                    nd_s.push(q.iter().map(|x| dequantize_i8(*x)).collect::<Vec<_>>());
+                    nd_q.push(Some(q));
+                } else {
+                    nd_s.push(t.clone());
+                    nd_q.push(None);
+                }
             }
+            (nd_s, nd_q)
+        };
+        let (nd_s, nd_q) = encode(false);
+        if fits.iter().all(|f| *f) {
+            return (nb_s, Some(nb_q), nd_s, nd_q);
         }
-        (nb_s, Some(nb_q), nd_s, nd_q)
+        let exact = normal_errors(frames, &c, &keys, options.interpolation, &nb_s, &nd_s);
+        let (cd_s, cd_q) = encode(true);
+        let clamped = normal_errors(frames, &c, &keys, options.interpolation, &nb_s, &cd_s);
+        if basis.quantize == QuantizeMode::On
+            || (clamped.0 <= exact.0 + CLAMP_MAX_DEGREES
+                && clamped.1 <= exact.1 + CLAMP_MEAN_DEGREES)
+        {
+            (nb_s, Some(nb_q), cd_s, cd_q)
+        } else {
+            (nb_s, Some(nb_q), nd_s, nd_q)
+        }
     });
     let normals_i8 = normals.as_ref().is_some_and(|n| n.1.is_some());
     let int8_normal_targets = normals
