@@ -319,7 +319,10 @@ pub fn encode_basis_gltf(
     }
 
     let svd = frame_svd(frames);
-    let projection = projection_errors(frames, &svd, cap);
+    let projection = match basis.size {
+        BasisSize::Fixed(k) => projection_errors(frames, &svd, k, f64::NEG_INFINITY),
+        BasisSize::Auto => projection_errors(frames, &svd, cap, basis.tolerance),
+    };
     let m = basis.tolerance;
     // The bound every played frame must meet: M at keyed frames, max(T, M) at dropped ones.
     let bound = keyframe_tolerance.map_or(m, |t| t.max(m));
@@ -433,7 +436,10 @@ pub fn encode_basis_gltf(
         candidate,
         keys,
         (max_error, worst_frame),
-        projection.get(k - 1).copied().unwrap_or(0.0),
+        match projection.get(k - 1) {
+            Some(e) => *e,
+            None => projection_errors(frames, &svd, k, f64::NEG_INFINITY)[k - 1],
+        },
         svd.singular.iter().take(k + 8).copied().collect(),
     )
 }
@@ -475,8 +481,9 @@ fn frame_svd(frames: &RenderFrames) -> Svd {
 }
 
 /// For K = 1..=cap, the largest vertex distance between each frame and its orthogonal
-/// projection onto the first K directions (f64), m. Stops early once it reaches zero.
-fn projection_errors(frames: &RenderFrames, svd: &Svd, cap: usize) -> Vec<f64> {
+/// projection onto the first K directions (f64), m; stops after the first K whose error is at
+/// most `stop` (so the last entry is the first K within `stop`, when there is one).
+fn projection_errors(frames: &RenderFrames, svd: &Svd, cap: usize, stop: f64) -> Vec<f64> {
     let (f, v) = (frames.frame_count(), frames.vertex_count());
     let p0 = frames.positions(0);
     let mut residual: Vec<Vec<f64>> = (1..f)
@@ -499,6 +506,9 @@ fn projection_errors(frames: &RenderFrames, svd: &Svd, cap: usize) -> Vec<f64> {
             }
         }
         errors.push(worst);
+        if worst <= stop {
+            return errors;
+        }
     }
     // With fewer directions than the cap, the remaining K reproduce the motion exactly.
     while errors.len() < cap {
