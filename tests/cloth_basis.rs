@@ -367,3 +367,23 @@ fn fixed_basis_writes_k_targets_and_more_targets_are_closer() {
     let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
     assert!(e.contains("--basis"), "{e}");
 }
+
+#[test]
+fn a_cache_that_never_moves_gets_one_zero_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("still.glb");
+    let mut job = ClothJob::new(
+        ClothSource::File(morph_reader::mesh_path("plane_30x30.obj")),
+        out.clone(),
+    );
+    job.frames = Some(5);
+    // No gravity, no wind, springs at rest: nothing moves.
+    job.gravity = Some(scenebake::glam::DVec3::ZERO);
+    job.basis = Some(BasisSize::Auto);
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let basis = report.cache.basis.as_ref().unwrap();
+    assert_eq!(basis.targets, 1);
+    let played = load(&out);
+    let (worst, _) = worst_error(&job, &played, report.fps);
+    assert!(worst <= 1e-3, "{worst}");
+}

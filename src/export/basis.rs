@@ -318,7 +318,10 @@ pub fn encode_basis_gltf(
         }
     }
 
-    let svd = frame_svd(frames);
+    let svd = frame_svd(frames).ok_or_else(|| Error::Export {
+        path: path.into(),
+        message: "the SVD of the frame deltas did not converge (non-finite positions?)".into(),
+    })?;
     let projection = match basis.size {
         BasisSize::Fixed(k) => projection_errors(frames, &svd, k, f64::NEG_INFINITY),
         BasisSize::Auto => projection_errors(frames, &svd, cap, basis.tolerance),
@@ -446,8 +449,9 @@ pub fn encode_basis_gltf(
 
 /// The thin SVD of the frame deltas from frame 0 (rows: vertex coordinates; columns: frames
 /// 1..F). Rows that are zero in every frame (vertices that never move) are exactly zero in every
-/// direction.
-fn frame_svd(frames: &RenderFrames) -> Svd {
+/// direction. A cache that never moves gets one zero direction (one target of zeros). `None`
+/// when the SVD does not converge.
+fn frame_svd(frames: &RenderFrames) -> Option<Svd> {
     let (f, v) = (frames.frame_count(), frames.vertex_count());
     let p0 = frames.positions(0);
     let d = Mat::<f64>::from_fn(3 * v, f - 1, |i, j| {
@@ -456,7 +460,7 @@ fn frame_svd(frames: &RenderFrames) -> Svd {
     let still: Vec<bool> = (0..3 * v)
         .map(|i| (0..f - 1).all(|j| d[(i, j)] == 0.0))
         .collect();
-    let svd = d.thin_svd().expect("the SVD of finite frames converges");
+    let svd = d.thin_svd().ok()?;
     let (u, s) = (svd.U(), svd.S().column_vector());
     let r = s.nrows();
     let scale = s[0].max(f64::MIN_POSITIVE);
@@ -474,10 +478,14 @@ fn frame_svd(frames: &RenderFrames) -> Svd {
         );
         singular.push(s[k]);
     }
-    Svd {
+    if directions.is_empty() {
+        directions.push(vec![0.0; 3 * v]);
+        singular.push(0.0);
+    }
+    Some(Svd {
         directions,
         singular,
-    }
+    })
 }
 
 /// For K = 1..=cap, the largest vertex distance between each frame and its orthogonal
