@@ -56,6 +56,142 @@ pub struct MeshInfo {
     pub triangles: usize,
     /// Morph targets (of the first primitive).
     pub morph_targets: usize,
+    /// How the vertex data are stored: component types, sparse targets, basis, bytes per part.
+    pub encoding: Encoding,
+}
+
+/// How a mesh's vertex data are stored (first primitive).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Encoding {
+    /// `basis` when the targets are a morph basis (named `basis_NN`, see
+    /// [`crate::export::basis`]), `frames` when they are frames (`frame_NNNN`), else `targets`
+    /// (or `none` without targets).
+    pub kind: String,
+    /// Component type of POSITION (`f32`, `i16 normalized`...).
+    pub positions: String,
+    /// Component type of NORMAL, if any.
+    pub normals: Option<String>,
+    /// Target POSITION component types and how many targets use each.
+    pub target_positions: Vec<(String, usize)>,
+    /// Target NORMAL component types and how many targets use each.
+    pub target_normals: Vec<(String, usize)>,
+    /// Target accessors stored sparse.
+    pub sparse_accessors: usize,
+    /// Whether the file requires KHR_mesh_quantization.
+    pub quantized: bool,
+    /// Bytes of buffer data per part: base attributes, indices, target positions, target
+    /// normals.
+    pub bytes: PartSizes,
+}
+
+/// Bytes of the buffer views an accessor group uses.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct PartSizes {
+    /// Base attributes (POSITION, NORMAL, TEXCOORD...).
+    pub base: u64,
+    /// Triangle indices.
+    pub indices: u64,
+    /// Morph-target POSITION deltas.
+    pub target_positions: u64,
+    /// Morph-target NORMAL deltas.
+    pub target_normals: u64,
+}
+
+/// The component type of an accessor, e.g. `i16 normalized`.
+fn component(a: &gltf::Accessor<'_>) -> String {
+    let t = match a.data_type() {
+        gltf::accessor::DataType::I8 => "i8",
+        gltf::accessor::DataType::U8 => "u8",
+        gltf::accessor::DataType::I16 => "i16",
+        gltf::accessor::DataType::U16 => "u16",
+        gltf::accessor::DataType::U32 => "u32",
+        gltf::accessor::DataType::F32 => "f32",
+    };
+    if a.normalized() {
+        format!("{t} normalized")
+    } else {
+        t.to_owned()
+    }
+}
+
+/// Bytes of the buffer data behind an accessor (its view, or a sparse accessor's index and
+/// value views).
+fn accessor_bytes(a: &gltf::Accessor<'_>) -> u64 {
+    let dense = a.view().map_or(0, |v| v.length() as u64);
+    let sparse = a.sparse().map_or(0, |s| {
+        (s.indices().view().length() + s.values().view().length()) as u64
+    });
+    dense + sparse
+}
+
+/// Adds one to the count of `key`.
+fn tally(counts: &mut Vec<(String, usize)>, key: String) {
+    match counts.iter_mut().find(|(k, _)| *k == key) {
+        Some((_, n)) => *n += 1,
+        None => counts.push((key, 1)),
+    }
+}
+
+/// The encoding of `mesh`'s first primitive.
+fn encoding(mesh: &gltf::Mesh<'_>, quantized: bool) -> Encoding {
+    let mut e = Encoding {
+        quantized,
+        kind: "none".into(),
+        ..Default::default()
+    };
+    let Some(prim) = mesh.primitives().next() else {
+        return e;
+    };
+    for (semantic, a) in prim.attributes() {
+        e.bytes.base += accessor_bytes(&a);
+        match semantic {
+            gltf::Semantic::Positions => e.positions = component(&a),
+            gltf::Semantic::Normals => e.normals = Some(component(&a)),
+            _ => {}
+        }
+    }
+    e.bytes.indices = prim.indices().map_or(0, |a| accessor_bytes(&a));
+    for t in prim.morph_targets() {
+        for (a, counts, bytes) in [
+            (
+                t.positions(),
+                &mut e.target_positions,
+                &mut e.bytes.target_positions,
+            ),
+            (
+                t.normals(),
+                &mut e.target_normals,
+                &mut e.bytes.target_normals,
+            ),
+        ] {
+            if let Some(a) = a {
+                tally(counts, component(&a));
+                *bytes += accessor_bytes(&a);
+                e.sparse_accessors += usize::from(a.sparse().is_some());
+            }
+        }
+    }
+    let names = mesh
+        .extras()
+        .as_ref()
+        .and_then(|x| serde_json::from_str::<serde_json::Value>(x.get()).ok())
+        .and_then(|v| v.get("targetNames").cloned());
+    let first = names
+        .as_ref()
+        .and_then(|n| n.get(0))
+        .and_then(|n| n.as_str())
+        .unwrap_or("");
+    e.kind = if prim.morph_targets().len() == 0 {
+        "none"
+    } else if first.starts_with("basis_") {
+        "basis"
+    } else if first.starts_with("frame_") {
+        "frames"
+    } else {
+        "targets"
+    }
+    .into();
+    e
 }
 
 /// One skin.
@@ -120,7 +256,10 @@ fn name_or_index(name: Option<&str>, index: usize) -> String {
 /// [`Error::Io`] or [`Error::Gltf`] when the file cannot be loaded.
 pub fn inspect(path: &Path) -> Result<Inspection> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
-    let (doc, buffers, _) = crate::io::gltf_import::import_gltf(path)?;
+    let (doc, buffers, _) = crate::io::gltf_import::import_gltf_for_inspection(path)?;
+    let quantized = doc
+        .extensions_required()
+        .any(|e| e == crate::export::basis::KHR_MESH_QUANTIZATION);
     let dir = path.parent().unwrap_or(Path::new(""));
     let external: u64 = doc
         .buffers()
@@ -199,6 +338,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             vertices,
             triangles,
             morph_targets: targets,
+            encoding: encoding(&mesh, quantized),
         });
     }
 

@@ -21,8 +21,10 @@ use crate::cloth::{
     make_solver, simulate, BakeParams, ClothModel, Simulation, SolverKind, StepStats,
 };
 use crate::error::{Error, Result};
+use crate::export::basis::encode_basis_gltf;
 use crate::export::morph::{check_cache, encode_morph_gltf};
 use crate::export::vat::{encode_vat, vat_paths, VatManifest, DEFAULT_MAX_WIDTH};
+use crate::export::{BasisOptions, BasisSize, BasisStats, QuantizeMode};
 use crate::export::{
     CacheStats, Interpolation, MorphOptions, RenderFrames, SparseMode, VatMode, VatOptions, Written,
 };
@@ -139,6 +141,15 @@ pub struct ClothJob {
     pub keyframe_tolerance: Option<f64>,
     /// `--sparse`: sparse morph-target accessors where smaller (`auto`) or never (`off`).
     pub sparse: SparseMode,
+    /// `--basis K|auto`: write a base plus K basis targets with per-frame weights instead of one
+    /// target per frame (see [`crate::export::basis`]).
+    pub basis: Option<BasisSize>,
+    /// `--basis-tolerance M` (scene units) [default: the keyframe tolerance, else 1 mm].
+    pub basis_tolerance: Option<f64>,
+    /// `--max-targets N`: most morph targets written.
+    pub max_targets: Option<usize>,
+    /// `--quantize`: KHR_mesh_quantization for the basis cache [default: auto with --basis].
+    pub quantize: Option<QuantizeMode>,
     /// `--scale S`: the input file is scaled about its origin by S, then…
     pub scale: f64,
     /// `--translate X,Y,Z` (m): …moved by this offset, before anything else (pins and colliders
@@ -201,6 +212,10 @@ impl ClothJob {
             vat_max_width: DEFAULT_MAX_WIDTH,
             keyframe_tolerance: None,
             sparse: SparseMode::Auto,
+            basis: None,
+            basis_tolerance: None,
+            max_targets: None,
+            quantize: None,
             scale: 1.0,
             translate: DVec3::ZERO,
             up_z: false,
@@ -305,6 +320,9 @@ pub struct CacheReport {
     /// Targets, kept frames, largest interpolation error against the full bake, accessors.
     #[serde(flatten)]
     pub stats: CacheStats,
+    /// The morph basis, when `--basis` was given: K, measured error, quantisation, bytes per
+    /// part.
+    pub basis: Option<BasisStats>,
 }
 
 /// The vertex-animation texture as written.
@@ -724,6 +742,26 @@ pub fn check_export_options(job: &ClothJob) -> Result<()> {
     if let Some(t) = job.keyframe_tolerance {
         non_negative("--keyframe-tolerance", t)?;
     }
+    if let Some(m) = job.basis_tolerance {
+        non_negative("--basis-tolerance", m)?;
+    }
+    if job.max_targets == Some(0) {
+        return Err(Error::option("--max-targets", "0: must be at least 1"));
+    }
+    if job.basis.is_none() {
+        if job.basis_tolerance.is_some() {
+            return Err(Error::option(
+                "--basis-tolerance",
+                "applies to a morph basis: give --basis K or --basis auto too",
+            ));
+        }
+        if job.quantize == Some(QuantizeMode::On) {
+            return Err(Error::option(
+                "--quantize",
+                "on: quantisation is written for a morph basis: give --basis K or --basis auto too",
+            ));
+        }
+    }
     if let Some(path) = &job.vat {
         vat_paths(path)?;
     }
@@ -791,6 +829,9 @@ pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
         )),
     }
 }
+
+/// `--basis-tolerance` when neither it nor `--keyframe-tolerance` is given: 1 mm.
+pub const DEFAULT_BASIS_TOLERANCE: f64 = 1e-3;
 
 /// A cloth job simulated but not exported.
 #[derive(Debug, Clone)]
@@ -891,7 +932,35 @@ fn export(
 ) -> Result<Exported> {
     check_cache(&job.output, &model.mesh, cache)?;
     let frames = RenderFrames::new(&model.mesh, cache);
-    let morph = encode_morph_gltf(&job.output, &model.mesh, &frames, &options)?;
+    let (morph, basis) = match job.basis {
+        Some(size) => {
+            let basis = BasisOptions {
+                size,
+                tolerance: job
+                    .basis_tolerance
+                    .or(job.keyframe_tolerance)
+                    .unwrap_or(DEFAULT_BASIS_TOLERANCE),
+                max_targets: job.max_targets,
+                quantize: job.quantize.unwrap_or_default(),
+            };
+            let e = encode_basis_gltf(&job.output, &model.mesh, &frames, &options, &basis)?;
+            (e.morph, Some(e.basis))
+        }
+        None => {
+            let morph = encode_morph_gltf(&job.output, &model.mesh, &frames, &options)?;
+            if let Some(n) = job.max_targets.filter(|&n| morph.stats.targets > n) {
+                return Err(Error::option(
+                    "--max-targets",
+                    format!(
+                        "{n}: the cache needs {} targets (one per kept frame); use --basis auto, \
+                         or a larger --keyframe-tolerance",
+                        morph.stats.targets
+                    ),
+                ));
+            }
+            (morph, None)
+        }
+    };
     let gltf_bytes = morph.files.iter().map(|(_, b)| b.len() as u64).sum();
     let mut files = morph.files;
     let vat = match &job.vat {
@@ -926,6 +995,7 @@ fn export(
             keyframe_tolerance: options.keyframe_tolerance,
             gltf_bytes,
             stats: morph.stats,
+            basis,
         },
         vat,
     })

@@ -9,7 +9,7 @@ use scenebake::cloth::material::MaterialPreset;
 use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::SolverKind;
 use scenebake::export::Interpolation;
-use scenebake::export::{SparseMode, VatMode};
+use scenebake::export::{BasisSize, QuantizeMode, SparseMode, VatMode};
 use scenebake::glam::DVec3;
 
 /// Simulate a cloth or soft body and write it as a morph-target glTF.
@@ -135,6 +135,25 @@ pub struct ClothArgs {
     /// Store morph-target deltas as sparse accessors (changed vertices only) where smaller.
     #[arg(long, value_enum, default_value_t = SparseArg::Auto)]
     pub sparse: SparseArg,
+    /// Write the motion as a base shape plus K basis shapes (morph targets) with per-frame
+    /// weights, from a truncated SVD of the frame deltas, instead of one target per frame;
+    /// `auto` picks the fewest targets that keep every baked frame within --basis-tolerance
+    /// (measured as a player computes it).
+    #[arg(long, value_name = "K|auto", value_parser = parse_basis)]
+    pub basis: Option<BasisSize>,
+    /// Largest vertex distance (scene units) allowed between a played frame and the bake, for
+    /// --basis auto and --quantize auto [default: --keyframe-tolerance, else 0.001].
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    pub basis_tolerance: Option<f64>,
+    /// Most morph targets written (for engines that cap them); an error if the tolerance
+    /// cannot be met within N.
+    #[arg(long, value_name = "N")]
+    pub max_targets: Option<usize>,
+    /// KHR_mesh_quantization for a --basis cache: int16 positions and deltas, int8 normals,
+    /// dequantised by the node's scale and translation; auto quantises when the measured error
+    /// stays within --basis-tolerance [default: auto with --basis].
+    #[arg(long, value_enum, value_name = "MODE")]
+    pub quantize: Option<QuantizeArg>,
     /// Scale the input file about its origin by S (before --translate; not for presets).
     #[arg(long, default_value_t = 1.0, value_name = "S")]
     pub scale: f64,
@@ -193,6 +212,17 @@ pub enum VatModeArg {
     Absolute,
     /// Offsets from the base mesh (frame 0).
     Offset,
+}
+
+/// `--quantize` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum QuantizeArg {
+    /// Where the measured error stays within the tolerance.
+    Auto,
+    /// Always.
+    On,
+    /// Never.
+    Off,
 }
 
 /// `--sparse` values.
@@ -256,6 +286,11 @@ pub enum OnOff {
 fn parse_vec3(s: &str) -> Result<DVec3, String> {
     scenebake::spec::parse_vec3("", s)
         .map_err(|e| e.to_string().replace("invalid value for : ", ""))
+}
+
+fn parse_basis(s: &str) -> Result<BasisSize, String> {
+    s.parse::<BasisSize>()
+        .map_err(|e| e.to_string().replace("invalid value for --basis: ", ""))
 }
 
 fn parse_collider(s: &str) -> Result<ColliderSpec, String> {
@@ -334,6 +369,14 @@ impl ClothArgs {
             SparseArg::Auto => SparseMode::Auto,
             SparseArg::Off => SparseMode::Off,
         };
+        job.basis = self.basis;
+        job.basis_tolerance = self.basis_tolerance;
+        job.max_targets = self.max_targets;
+        job.quantize = self.quantize.map(|q| match q {
+            QuantizeArg::Auto => QuantizeMode::Auto,
+            QuantizeArg::On => QuantizeMode::On,
+            QuantizeArg::Off => QuantizeMode::Off,
+        });
         job.scale = self.scale;
         job.translate = self.translate.unwrap_or(DVec3::ZERO);
         job.up_z = self.up == UpArg::Z;

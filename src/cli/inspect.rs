@@ -30,6 +30,32 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
                 "  mesh {}: {} vertices, {} triangles, {} morph targets",
                 m.name, m.vertices, m.triangles, m.morph_targets
             );
+            let e = &m.encoding;
+            if m.morph_targets > 0 {
+                let list = |v: &[(String, usize)]| {
+                    v.iter()
+                        .map(|(t, n)| format!("{n}× {t}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                println!(
+                    "    encoding: {}{}; POSITION {}, NORMAL {}; target POSITION {}; target NORMAL {}; {} sparse",
+                    e.kind,
+                    if e.quantized { ", KHR_mesh_quantization" } else { "" },
+                    e.positions,
+                    e.normals.as_deref().unwrap_or("none"),
+                    list(&e.target_positions),
+                    if e.target_normals.is_empty() { "none".into() } else { list(&e.target_normals) },
+                    e.sparse_accessors
+                );
+                println!(
+                    "    bytes: base {}, indices {}, target POSITION {}, target NORMAL {}",
+                    bytes(e.bytes.base),
+                    bytes(e.bytes.indices),
+                    bytes(e.bytes.target_positions),
+                    bytes(e.bytes.target_normals)
+                );
+            }
         }
         for s in &info.skins {
             let joints: Vec<String> = s

@@ -214,6 +214,17 @@ pub fn summary_line(o: &Outcome) -> String {
         ),
         _ => String::new(),
     };
+    let basis = &r["cache"]["basis"];
+    let extra = if basis.is_object() {
+        format!(
+            "{extra}; basis {} targets, max error {:.3} mm, positions {}",
+            basis["targets"],
+            1e3 * basis["max_error"].as_f64().unwrap_or(0.0),
+            basis["quantization"]["positions"].as_str().unwrap_or("")
+        )
+    } else {
+        extra
+    };
     format!(
         "{}: baked {} frames{} in {:.2} s; wrote {}",
         o.name,

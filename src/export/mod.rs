@@ -1,6 +1,7 @@
 //! Writers for output files.
 
 pub mod atomic;
+pub mod basis;
 pub mod compact;
 pub mod estimate;
 pub mod frames;
@@ -12,6 +13,7 @@ pub mod skin;
 pub mod statics;
 pub mod vat;
 
+pub use basis::{BasisOptions, BasisSize, BasisStats, QuantizeMode};
 pub use compact::SparseMode;
 pub use frames::RenderFrames;
 pub use gltf_doc::{GltfBuilder, Written};

@@ -337,7 +337,7 @@ fn difference(a: &[Vec3], b: &[Vec3]) -> Vec<Vec3> {
 }
 
 /// The double-sided cloth material.
-fn cloth_material(b: &mut GltfBuilder) -> json::Index<json::Material> {
+pub(crate) fn cloth_material(b: &mut GltfBuilder) -> json::Index<json::Material> {
     b.root.push(json::Material {
         name: Some("cloth".into()),
         double_sided: true,
@@ -388,6 +388,6 @@ fn weights_animation(
 }
 
 /// OBJ texture coordinates have v up; glTF's have v down.
-fn flip_v(uv: [f32; 2]) -> [f32; 2] {
+pub(crate) fn flip_v(uv: [f32; 2]) -> [f32; 2] {
     [uv[0], 1.0 - uv[1]]
 }
