@@ -244,7 +244,7 @@ pub enum ClothPreset {
 /// `--material` values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum MaterialArg {
-    /// Light woven cotton: 1000 N/m, 5e-6 N·m, 0.15 kg/m².
+    /// Medium-weight woven cotton: 1000 N/m, 1.5e-5 N·m, 0.15 kg/m².
     Cotton,
     /// Silk: 300 N/m, 1e-6 N·m, 0.081 kg/m².
     Silk,

@@ -48,7 +48,7 @@ pub struct Material {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum MaterialPreset {
-    /// A light woven cotton (shirting): the default.
+    /// A medium-weight woven cotton: the default.
     Cotton,
     /// A light silk (charmeuse).
     Silk,
@@ -91,13 +91,14 @@ impl MaterialPreset {
     /// from 1 mm at 900 and 1100 kg/m³). Stretch moduli are small-strain values in the ranges
     /// measured by Wang, O'Brien and Ramamoorthi (2011) for woven fabrics (cotton, denim) and
     /// from E·t for the solids (rubber: 2 MPa × 1 mm). Bending rigidities are Kawabata (KES-FB2)
-    /// magnitudes: cotton shirting ≈ 0.05 gf·cm²/cm ≈ 5e-6 N·m, silk ≈ 1e-6 N·m, denim ≈ 0.5
-    /// gf·cm²/cm ≈ 5e-5 N·m; for the solids E·t³/12. They are representative figures, not a
+    /// magnitudes: a medium-weight cotton ≈ 0.15 gf·cm²/cm ≈ 1.5e-5 N·m (a light shirting is a
+    /// third of that), silk ≈ 1e-6 N·m, denim ≈ 0.5 gf·cm²/cm ≈ 5e-5 N·m; for the solids
+    /// E·t³/12. They are representative figures, not a
     /// measurement of one bolt of cloth: give `--stretch`, `--bend`, `--density` for a measured
     /// fabric.
     pub fn material(self) -> Material {
         let (stretch, compression, bend, density) = match self {
-            MaterialPreset::Cotton => (1000.0, FABRIC_COMPRESSION, 5e-6, 0.15),
+            MaterialPreset::Cotton => (1000.0, FABRIC_COMPRESSION, 1.5e-5, 0.15),
             MaterialPreset::Silk => (300.0, FABRIC_COMPRESSION, 1e-6, 0.081),
             MaterialPreset::Denim => (3000.0, FABRIC_COMPRESSION, 5e-5, 0.373),
             MaterialPreset::Leather => (8000.0, 0.3, 5e-4, 0.9),
