@@ -3,9 +3,12 @@
 pub mod atomic;
 pub mod basis;
 pub mod compact;
+pub mod estimate;
 pub mod frames;
 pub mod gltf_doc;
 pub mod morph;
+pub mod playback;
+pub mod shading;
 pub mod skin;
 pub mod statics;
 pub mod vat;

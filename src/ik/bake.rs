@@ -207,6 +207,8 @@ pub struct IkReport {
     pub seconds_total: f64,
     /// Files written.
     pub files: Vec<PathBuf>,
+    /// What the bake repaired or could not do as asked (printed on the terminal too).
+    pub warnings: Vec<String>,
 }
 
 struct Setup {
@@ -492,8 +494,12 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
         rotations: &rotations,
         name: "ik",
     };
+    let mut warnings = Vec::new();
     let written = match setup.rig {
-        Some((doc, nodes)) => write_rig_gltf(&job.output, doc, chain, &nodes, &frames)?,
+        Some((doc, nodes)) => {
+            warnings.extend(doc.warnings.iter().cloned());
+            write_rig_gltf(&job.output, doc, chain, &nodes, &frames)?
+        }
         None => write_chain_gltf(&job.output, chain, &rest, &frames, &targets, &tips)?,
     };
     let mut report = IkReport {
@@ -515,6 +521,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
         seconds_solve,
         seconds_total: 0.0,
         files: written.files,
+        warnings,
     };
     if let Some(path) = &job.report {
         report.seconds_total = t0.elapsed().as_secs_f64();
