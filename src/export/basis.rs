@@ -47,7 +47,10 @@
 //! are `int8`; each target's NORMAL deltas are `int8` when every component fits in [-1, 1];
 //! the others are `int8` clamped to [-1, 1] when that raises the measured normal error by at
 //! most 2° (largest) and 0.1° (mean) over the unclamped file (always with `--quantize on`),
-//! else `f32` (sparse where smaller). Vertex attributes keep 4-byte aligned elements (stride 8
+//! else `f32` (sparse where smaller). A target whose weights leave room gets a gain
+//! g = max |normal delta| (weights × g ≤ 1, stored positions ÷ g) that brings its normal
+//! deltas into `int8`; that encoding is measured too and written when within the tolerance and
+//! smaller. Vertex attributes keep 4-byte aligned elements (stride 8
 //! for `int16` VEC3, 4 for `int8` VEC3). `auto` quantises when the measured error stays within
 //! the tolerance, trying up to half as many extra targets again (the file stays smaller than the
 //! `f32` one); `on` always quantises (the error is reported); `off` never.
@@ -211,6 +214,8 @@ const RANGE_PAD: f64 = 0.01;
 const CLAMP_MAX_DEGREES: f64 = 2.0;
 /// ...and the mean normal error by at most this (degrees).
 const CLAMP_MEAN_DEGREES: f64 = 0.1;
+/// Headroom of a normal gain, so that normal deltas refitted after the gain still fit.
+const GAIN_MARGIN: f64 = 1.02;
 /// Largest value of a normalised int16.
 const I16: f64 = 32767.0;
 /// Largest value of a normalised int8.
@@ -239,6 +244,9 @@ struct Candidate {
     /// Weights of every frame (F × K), in [0, 1].
     weights: Vec<Vec<f32>>,
 }
+
+/// A candidate with its weight keys, measured error and worst frame.
+type Pick = (Candidate, Vec<usize>, f64, usize);
 
 /// A quantised target's values.
 #[derive(Debug, Clone)]
@@ -340,10 +348,10 @@ pub fn encode_basis_gltf(
         }
     };
     let try_quantized = basis.quantize != QuantizeMode::Off;
-    let mut best: Option<(Candidate, Vec<usize>, f64, usize)> = None;
-    let mut float_pick: Option<(Candidate, Vec<usize>, f64, usize)> = None;
+    let mut best: Option<Pick> = None;
+    let mut float_pick: Option<Pick> = None;
     for &k in &ks {
-        let float = build(frames, &svd, k, false, &[]);
+        let float = build(frames, &svd, k, false, &[], &[]);
         let keys = select_keys(frames, &float, keyframe_tolerance.map(|_| bound), options);
         let (err, worst) = measure(frames, &float, &keys, options.interpolation);
         let fits = err <= bound || basis.size != BasisSize::Auto;
@@ -379,7 +387,7 @@ pub fn encode_basis_gltf(
             (k0 * 3 / 2).min(cap)
         };
         for k in k0..=limit {
-            let q = build(frames, &svd, k, true, &[]);
+            let q = build(frames, &svd, k, true, &[], &[]);
             let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
             let (err, worst) = measure(frames, &q, &keys, options.interpolation);
             if err <= bound || basis.quantize == QuantizeMode::On {
@@ -415,7 +423,7 @@ pub fn encode_basis_gltf(
                     n += 1;
                 }
                 if n > chosen {
-                    let q = build(frames, &svd, k, true, &int8);
+                    let q = build(frames, &svd, k, true, &int8, &[]);
                     let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
                     let (err, worst) = measure(frames, &q, &keys, options.interpolation);
                     if err > bound {
@@ -428,23 +436,86 @@ pub fn encode_basis_gltf(
             }
         }
     }
-    let (candidate, keys, max_error, worst_frame) = pick;
-    let k = candidate.k;
-    write(
-        path,
-        mesh,
-        frames,
-        options,
-        basis,
-        candidate,
-        keys,
-        (max_error, worst_frame),
-        match projection.get(k - 1) {
-            Some(e) => *e,
-            None => projection_errors(frames, &svd, k, f64::NEG_INFINITY)[k - 1],
-        },
-        svd.singular.iter().take(k + 8).copied().collect(),
-    )
+    let mut gained: Option<Pick> = None;
+    if pick.0.quantized && options.normals {
+        // Targets whose fitted normal deltas exceed [-1, 1] but whose weights leave room: a
+        // gain g = max |normal delta| (weights × g stay ≤ 1) brings the normals into int8 at
+        // the cost of g× coarser positions; an alternative when the measured error stays within
+        // the tolerance (first with the int8 targets as chosen, then with the gained ones
+        // int16), written instead when its file is smaller.
+        let c = &pick.0;
+        let (_, nd) = fit_normals(frames, c, c.k);
+        let gains: Vec<f64> = (0..c.k)
+            .map(|t| {
+                let m = nd[t]
+                    .iter()
+                    .map(|x| x.abs().max_element())
+                    .fold(0.0f32, f32::max) as f64
+                    * GAIN_MARGIN;
+                let a = c.weights.iter().map(|w| w[t] as f64).fold(0.0, f64::max);
+                if m > 1.0 && a * m <= 1.0 {
+                    m
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        if gains.iter().any(|g| *g > 1.0) {
+            let int8: Vec<bool> = c
+                .deltas_q
+                .iter()
+                .map(|d| matches!(d, StoredDelta::I8(_)))
+                .collect();
+            let int16_gained: Vec<bool> = int8
+                .iter()
+                .zip(&gains)
+                .map(|(i, g)| *i && *g == 1.0)
+                .collect();
+            let k = c.k;
+            for flags in [int8, int16_gained] {
+                let q = build(frames, &svd, k, true, &flags, &gains);
+                let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
+                let (err, worst) = measure(frames, &q, &keys, options.interpolation);
+                if err <= bound {
+                    gained = Some((q, keys, err, worst));
+                    break;
+                }
+            }
+        }
+    }
+    let k = pick.0.k;
+    let projection_error = match projection.get(k - 1) {
+        Some(e) => *e,
+        None => projection_errors(frames, &svd, k, f64::NEG_INFINITY)[k - 1],
+    };
+    let encode = |(candidate, keys, max_error, worst_frame): Pick| {
+        write(
+            path,
+            mesh,
+            frames,
+            options,
+            basis,
+            candidate,
+            keys,
+            (max_error, worst_frame),
+            projection_error,
+            svd.singular.iter().take(k + 8).copied().collect(),
+        )
+    };
+    let first = encode(pick)?;
+    // Keep the normal-gained encoding only when its file is smaller.
+    match gained {
+        Some(alt) => {
+            let second = encode(alt)?;
+            let size = |e: &EncodedBasis| e.morph.files.iter().map(|(_, b)| b.len()).sum::<usize>();
+            Ok(if size(&second) < size(&first) {
+                second
+            } else {
+                first
+            })
+        }
+        None => Ok(first),
+    }
 }
 
 /// The thin SVD of the frame deltas from frame 0 (rows: vertex coordinates; columns: frames
@@ -528,7 +599,16 @@ fn projection_errors(frames: &RenderFrames, svd: &Svd, cap: usize, stop: f64) ->
 /// Builds the K-target candidate: base and targets from the first K directions mapped so that
 /// weights lie in [0, 1], rounded to what the file stores (quantised or not), weights refitted.
 /// `int8[t]` stores target t as int8 (quantised candidates only).
-fn build(frames: &RenderFrames, svd: &Svd, k: usize, quantized: bool, int8: &[bool]) -> Candidate {
+/// `gain[t]` (default 1) shrinks target t's stored values below [-1, 1] (its weights grow by
+/// as much), so that its normal deltas fit in int8 too.
+fn build(
+    frames: &RenderFrames,
+    svd: &Svd,
+    k: usize,
+    quantized: bool,
+    int8: &[bool],
+    gain: &[f64],
+) -> Candidate {
     let (f, v) = (frames.frame_count(), frames.vertex_count());
     let k = k.min(svd.directions.len());
     let p0 = frames.positions(0);
@@ -595,7 +675,8 @@ fn build(frames: &RenderFrames, svd: &Svd, k: usize, quantized: bool, int8: &[bo
                 .map(|x| x.abs().max_element())
                 .fold(0.0f64, f64::max)
                 / scale;
-            let unit = scale * amplitude.max(f64::MIN_POSITIVE);
+            let unit =
+                scale * amplitude.max(f64::MIN_POSITIVE) * gain.get(t).copied().unwrap_or(1.0);
             if int8.get(t).copied().unwrap_or(false) {
                 let q: Vec<[i8; 3]> = d
                     .iter()
