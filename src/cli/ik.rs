@@ -10,7 +10,7 @@ use scenebake::ik::bake::IkJob;
 #[derive(Debug, Args)]
 #[command(
     allow_negative_numbers = true,
-    after_help = "Examples:\n  scenebake ik --preset lab-arm --curve circle --solver fabrik -o exports/circle.glb\n  scenebake ik --preset lab-arm --text \"HELLO\" -o exports/hello.glb --report hello.json\n  scenebake ik --rig meshes/Fox.glb --chain b_Spine01_02..b_Head_05 --curve heart -o exports/fox.glb"
+    after_help = "Examples:\n  scenebake ik --preset lab-arm --curve circle --solver fabrik -o exports/circle.glb\n  scenebake ik --preset lab-arm --text \"hello\" --font script -o exports/hello.glb --report hello.json\n  scenebake ik --rig meshes/Fox.glb --chain b_Spine01_02..b_Head_05 --curve heart -o exports/fox.glb"
 )]
 pub struct IkArgs {
     /// A generated reference chain: the labs' 5-joint arm.
@@ -47,9 +47,14 @@ pub struct IkArgs {
     /// Follow a closed curve.
     #[arg(long, value_enum)]
     pub curve: Option<CurveArg>,
-    /// Write text with single-stroke letters (A–Z, 0–9, space, punctuation).
+    /// Write text (lines split at \n) in --font.
     #[arg(long, value_name = "TEXT")]
     pub text: Option<String>,
+    /// Font for --text: a Hershey single-stroke font (simplex, duplex, triplex, script,
+    /// script-complex, cursive, sans, greek), the old capitals-only `grid`, or a TrueType/OpenType
+    /// file (letters drawn as outlines) [default: simplex].
+    #[arg(long, value_name = "NAME|FILE.ttf")]
+    pub font: Option<String>,
     /// Draw every path of an SVG file (lines, Béziers and arcs, flattened).
     #[arg(long, value_name = "FILE.svg")]
     pub svg: Option<PathBuf>,
@@ -62,6 +67,10 @@ pub struct IkArgs {
     /// Centre of the drawing [lab arm: the origin; rigs: in front of the chain].
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub center: Option<DVec3>,
+    /// Direction the drawing board faces (its normal); the drawing reads correctly from the
+    /// chain root's side [default: facing the chain root along its rest direction].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub normal: Option<DVec3>,
     /// Letter height (--text) or drawing height (--svg) in scene units [default: fit the reach].
     #[arg(long, value_name = "H")]
     pub size: Option<f64>,
@@ -139,10 +148,12 @@ impl IkArgs {
             fps: self.fps,
             curve: self.curve.map(|c| name(&c).parse()).transpose()?,
             text: self.text.clone(),
+            font: self.font.clone(),
             svg: self.svg.clone(),
             points: self.points.clone(),
             radius: self.radius,
             center: self.center,
+            normal: self.normal,
             size: self.size,
             lift: self.lift,
             spacing: self.spacing,

@@ -3,6 +3,7 @@
 //! (pen down along strokes, lifted between them).
 
 pub mod curves;
+pub mod font;
 pub mod points;
 pub mod resample;
 pub mod svg;
