@@ -485,7 +485,11 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     let reach = chain.reach(&rest);
     let root = rest.position(0);
     let (center, view) = board(job, setup.lab, root, rest.tip(), reach)?;
-    let plane = Plane::facing(center, view);
+    let plane = if job.normal.is_some() {
+        Plane::facing_from(center, view, root)
+    } else {
+        Plane::facing(center, view)
+    };
     let h = (center - root).dot(view);
     let disc = (reach * reach - h * h).max(0.0).sqrt();
     let spacing = job.spacing.unwrap_or(reach * TIP_SPEED_PER_REACH / job.fps);

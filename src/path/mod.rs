@@ -59,6 +59,24 @@ impl Plane {
         }
     }
 
+    /// The plane through `center` seen along `normal` by a reader at `eye`: as [`Plane::facing`],
+    /// except that on a level board (a desk or a ceiling, `|normal.y| > 0.9`) "up" points
+    /// horizontally away from the reader, as on a sheet of paper on a table.
+    pub fn facing_from(center: DVec3, normal: DVec3, eye: DVec3) -> Plane {
+        let plane = Plane::facing(center, normal);
+        let away = center - eye;
+        let away = away - away.dot(plane.normal) * plane.normal;
+        if plane.normal.y.abs() <= 0.9 || away.length() < 1e-9 * (1.0 + center.length()) {
+            return plane;
+        }
+        let up = away.normalize();
+        Plane {
+            up,
+            right: plane.normal.cross(up),
+            ..plane
+        }
+    }
+
     /// World position of plane coordinates `p`.
     pub fn to_world(&self, p: DVec2) -> DVec3 {
         self.center + self.right * p.x + self.up * p.y
