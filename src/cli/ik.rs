@@ -41,6 +41,16 @@ pub struct IkArgs {
     /// Largest rotation of any joint from one frame to the next, in degrees (clamps sudden flips).
     #[arg(long, value_name = "DEG")]
     pub max_angle: Option<f64>,
+    /// Keep the chain's bend facing this world point (like Blender's IK pole): an elbow points
+    /// towards it.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub pole: Option<DVec3>,
+    /// Limit a joint, from its rest rotation, in degrees: JOINT:hinge:MIN..MAX (one axis: with
+    /// --pole, positive bends the joint out towards the pole; or give the axis as a world
+    /// direction, JOINT:hinge:MIN..MAX:X,Y,Z) or JOINT:cone:DEG (the bone stays within DEG of
+    /// its rest direction). Repeat for several joints.
+    #[arg(long, value_name = "JOINT:KIND:RANGE", allow_hyphen_values = true)]
+    pub limit: Vec<String>,
     /// Frames per second of the animation.
     #[arg(long, default_value_t = 30.0, value_name = "F")]
     pub fps: f64,
@@ -145,6 +155,8 @@ impl IkArgs {
             max_iterations: self.max_iterations,
             tolerance: self.tolerance,
             max_angle: self.max_angle,
+            pole: self.pole,
+            limit: self.limit.clone(),
             fps: self.fps,
             curve: self.curve.map(|c| name(&c).parse()).transpose()?,
             text: self.text.clone(),

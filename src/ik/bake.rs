@@ -11,6 +11,7 @@ use std::time::Instant;
 use glam::{DQuat, DVec2, DVec3};
 
 use super::chain::{Chain, ROOT_HEIGHT_FRACTION};
+use super::constraints::Constraints;
 use super::rig::RigDocument;
 use super::solver::{IkSolver, SolverConfig};
 use super::{Ccd, Fabrik};
@@ -75,6 +76,8 @@ pub const TIP_SPEED_PER_REACH: f64 = TAU * 0.6 / 2.6 / 5.0;
 /// | `max_iterations` | `--max-iterations N` | 100 |
 /// | `tolerance` | `--tolerance D` (scene units) | 1e-4 |
 /// | `max_angle` | `--max-angle DEG` (per joint per frame) | unlimited |
+/// | `pole` | `--pole X,Y,Z` (the chain bends towards this world point) | none |
+/// | `limit` | `--limit JOINT:hinge:MIN..MAX[:X,Y,Z]`, `--limit JOINT:cone:DEG` (repeatable; [`Constraints::from_specs`]) | none |
 /// | `fps` | `--fps F` | 30 |
 /// | `curve` | `--curve circle\|square\|heart\|triangle\|star` ([`CurveKind::from_str`]) | — |
 /// | `text` | `--text "..."` | — |
@@ -120,6 +123,10 @@ pub struct IkJob {
     pub tolerance: f64,
     /// `--max-angle` (degrees).
     pub max_angle: Option<f64>,
+    /// `--pole` (world point).
+    pub pole: Option<DVec3>,
+    /// `--limit` specifications, one per limited joint.
+    pub limit: Vec<String>,
     /// `--fps`.
     pub fps: f64,
     /// `--curve`.
@@ -162,6 +169,8 @@ impl Default for IkJob {
             max_iterations: 100,
             tolerance: 1e-4,
             max_angle: None,
+            pole: None,
+            limit: Vec::new(),
             fps: 30.0,
             curve: None,
             text: None,
@@ -481,6 +490,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     }
     let setup = setup_chain(job)?;
     let chain = &setup.chain;
+    let constraints = Constraints::from_specs(chain, job.pole, &job.limit)?;
     let rest = chain.rest_pose();
     let reach = chain.reach(&rest);
     let root = rest.position(0);
@@ -524,7 +534,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     );
     let mut reached = 0;
     for (k, t) in targets.iter().enumerate() {
-        let r = solver.solve(chain, &mut pose, t.position)?;
+        let r = solver.solve_with(chain, &mut pose, t.position, &constraints)?;
         rotations.extend_from_slice(&pose.rotations);
         tips.push(pose.tip());
         iterations.push(r.iterations);

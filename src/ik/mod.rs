@@ -23,6 +23,7 @@
 pub mod bake;
 pub mod ccd;
 pub mod chain;
+pub mod constraints;
 pub mod fabrik;
 pub mod rig;
 pub mod solver;
@@ -30,5 +31,6 @@ pub mod solver;
 pub use bake::{bake_ik, IkJob, IkReport, SolverKind};
 pub use ccd::Ccd;
 pub use chain::{Chain, Joint, Pose};
+pub use constraints::{Constraints, Limit};
 pub use fabrik::Fabrik;
 pub use solver::{IkSolver, SolveReport, SolverConfig};
