@@ -179,6 +179,7 @@ impl Constraints {
             };
             limits.push((i, limit));
         }
+        limits.sort_by_key(|(i, _)| *i);
         Ok(Constraints { pole, limits })
     }
 }
@@ -243,11 +244,9 @@ pub(crate) fn clamp_rotation(chain: &Chain, i: usize, limit: &Limit, r: &mut DQu
 /// changed.
 pub(crate) fn clamp_all(chain: &Chain, pose: &mut Pose, c: &Constraints) -> bool {
     let mut first: Option<usize> = None;
-    let mut limits: Vec<&(usize, Limit)> = c.limits.iter().collect();
-    limits.sort_by_key(|(i, _)| *i);
-    for (i, l) in limits {
+    for (i, l) in &c.limits {
         if clamp_rotation(chain, *i, l, &mut pose.rotations[*i]) {
-            first.get_or_insert(*i);
+            first = Some(first.map_or(*i, |f: usize| f.min(*i)));
         }
     }
     if let Some(i) = first {
