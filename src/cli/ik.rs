@@ -91,6 +91,13 @@ pub struct IkArgs {
     /// the chosen fps; the lab circle keeps its 150 targets].
     #[arg(long, value_name = "D")]
     pub spacing: Option<f64>,
+    /// Pen speed in scene units per second: one target per frame, every stroke and every lift
+    /// starting and ending at rest (instead of --spacing).
+    #[arg(long, value_name = "V")]
+    pub pen_speed: Option<f64>,
+    /// Seconds for the pen to reach --pen-speed from rest, and to stop [default: 0.15].
+    #[arg(long, value_name = "S")]
+    pub ease: Option<f64>,
     /// Output file: .glb, or .gltf with a .bin beside it.
     #[arg(short = 'o', long, value_name = "FILE")]
     pub output: PathBuf,
@@ -169,6 +176,8 @@ impl IkArgs {
             size: self.size,
             lift: self.lift,
             spacing: self.spacing,
+            pen_speed: self.pen_speed,
+            ease: self.ease,
             output: self.output.clone(),
             report: self.report.clone(),
         })

@@ -18,7 +18,7 @@ use super::{Ccd, Fabrik};
 use crate::error::{Error, Result};
 use crate::export::skin::{write_chain_gltf, write_rig_gltf, IkFrames};
 use crate::path::font::Font;
-use crate::path::{self, CurveKind, PenTarget, Plane, Stroke};
+use crate::path::{self, CurveKind, PenTarget, Plane, Stroke, Timing};
 
 /// Which solver runs (`--solver`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -63,6 +63,9 @@ pub const LAB_ARM: &str = "lab-arm";
 /// on the 2.6-long arm) drawn in 5 s, so at the default 30 fps it keeps the lab's 150 targets.
 pub const TIP_SPEED_PER_REACH: f64 = TAU * 0.6 / 2.6 / 5.0;
 
+/// Default time for the pen to reach `--pen-speed` from rest (and to stop), seconds.
+pub const DEFAULT_EASE: f64 = 0.15;
+
 /// One `scenebake ik` run. Each field is one command-line option:
 ///
 /// | field | option | default |
@@ -90,6 +93,8 @@ pub const TIP_SPEED_PER_REACH: f64 = TAU * 0.6 / 2.6 / 5.0;
 /// | `size` | `--size H` (letter height for `--text`, drawing height for `--svg`) | fit to reach |
 /// | `lift` | `--lift D` (pen lift between strokes) | 0.04·reach |
 /// | `spacing` | `--spacing D` (target spacing along the path) | tip speed (0.29·reach/s) / fps |
+/// | `pen_speed` | `--pen-speed V` (scene units/s; strokes and lifts start and end at rest) | none: even spacing |
+/// | `ease` | `--ease S` (seconds to reach the pen speed; with `pen_speed`) | 0.15 |
 /// | `output` | `-o FILE.glb\|.gltf` | `exports/ik.glb` |
 /// | `report` | `--report FILE.json` | none |
 ///
@@ -151,6 +156,10 @@ pub struct IkJob {
     pub lift: Option<f64>,
     /// `--spacing` (scene units).
     pub spacing: Option<f64>,
+    /// `--pen-speed` (scene units per second).
+    pub pen_speed: Option<f64>,
+    /// `--ease` (seconds).
+    pub ease: Option<f64>,
     /// `-o`.
     pub output: PathBuf,
     /// `--report`.
@@ -183,6 +192,8 @@ impl Default for IkJob {
             size: None,
             lift: None,
             spacing: None,
+            pen_speed: None,
+            ease: None,
             output: PathBuf::from("exports/ik.glb"),
             report: None,
         }
@@ -502,10 +513,33 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     };
     let h = (center - root).dot(view);
     let disc = (reach * reach - h * h).max(0.0).sqrt();
-    let spacing = job.spacing.unwrap_or(reach * TIP_SPEED_PER_REACH / job.fps);
+    positive_opt("--pen-speed", job.pen_speed)?;
+    if job.pen_speed.is_some() && job.spacing.is_some() {
+        return Err(Error::option(
+            "--pen-speed",
+            "give --pen-speed or --spacing, not both",
+        ));
+    }
+    if let Some(e) = job.ease {
+        if job.pen_speed.is_none() {
+            return Err(Error::option("--ease", "only applies with --pen-speed"));
+        }
+        crate::spec::non_negative("--ease", e)?;
+    }
+    let spacing = match job.pen_speed {
+        Some(v) => v / job.fps,
+        None => job.spacing.unwrap_or(reach * TIP_SPEED_PER_REACH / job.fps),
+    };
+    let timing = match job.pen_speed {
+        Some(_) => Timing::Eased {
+            step: spacing,
+            ease_frames: job.ease.unwrap_or(DEFAULT_EASE) * job.fps,
+        },
+        None => Timing::Even(spacing),
+    };
     let lift = job.lift.unwrap_or(0.04 * reach);
     let strokes = build_strokes(job, &plane, reach, setup.lab, disc, spacing)?;
-    let targets: Vec<PenTarget> = path::pen_path(&strokes, spacing, -view * lift);
+    let targets: Vec<PenTarget> = path::pen_path_timed(&strokes, timing, -view * lift);
     if targets.is_empty() {
         return Err(Error::option(
             "--curve/--text/--svg/--points",
