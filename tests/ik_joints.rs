@@ -171,3 +171,87 @@ fn bad_limits_are_errors_naming_the_option() {
     );
     assert!(!job.output.exists());
 }
+
+#[test]
+fn a_rig_leg_writes_with_a_pole_a_hinged_elbow_and_a_shoulder_cone() {
+    // Fox's right foreleg (shoulder, elbow, paw; rig frames with rest rotations) writing on the
+    // ground in front of it, the elbow pointing back at the pole.
+    let dir = tempfile::tempdir().unwrap();
+    let pole = DVec3::new(-7.0, 30.0, -20.0);
+    for solver in [SolverKind::Fabrik, SolverKind::Ccd] {
+        let job = IkJob {
+            rig: Some(common::crate_dir().join("meshes/Fox.glb")),
+            chain: Some("b_RightUpperArm_06..b_RightHand_08".into()),
+            text: Some("hi".into()),
+            font: Some("script".into()),
+            size: Some(8.0),
+            center: Some(DVec3::new(-7.0, 12.0, 25.0)),
+            normal: Some(DVec3::Y),
+            pole: Some(pole),
+            limit: vec![
+                "b_RightForeArm_07:hinge:0..150".into(),
+                "b_RightUpperArm_06:cone:70".into(),
+            ],
+            solver,
+            output: dir.path().join(format!("leg_{}.glb", solver.as_str())),
+            ..Default::default()
+        };
+        let r = bake_ik(&job, &mut |_, _| {}).unwrap();
+        assert_eq!(r.reached, r.frames, "{solver:?}: max error {}", r.max_error);
+        let f = frames(&job);
+        // f32 keys on a ~40-unit leg.
+        for (k, &t) in f.times.iter().enumerate() {
+            let d = f
+                .pos("b_RightHand_08", t)
+                .distance(DVec3::from_array(r.targets[k]));
+            assert!(d < 1e-4 + 1e-3, "{solver:?} frame {k}: {d}");
+        }
+        let node = |n: &str| f.l.doc.nodes().nth(f.l.node_by_name(n)).unwrap();
+        let rest_q = |n: &str| DQuat::from_array(node(n).transform().decomposed().1.map(f64::from));
+        let (s0, e0) = (
+            f.l.world_pos(
+                &Tracks::default(),
+                f.l.node_by_name("b_RightUpperArm_06"),
+                0.0,
+            ),
+            f.l.world_pos(
+                &Tracks::default(),
+                f.l.node_by_name("b_RightForeArm_07"),
+                0.0,
+            ),
+        );
+        let mut hinge_axis: Option<DVec3> = None;
+        for (k, &t) in f.times.iter().enumerate() {
+            let (s, e, h) = (
+                f.pos("b_RightUpperArm_06", t),
+                f.pos("b_RightForeArm_07", t),
+                f.pos("b_RightHand_08", t),
+            );
+            let line = (h - s).normalize();
+            let off = (e - s).reject_from(line);
+            assert!(
+                off.dot((pole - s).reject_from(line)) > 0.0,
+                "{solver:?} frame {k}: elbow flipped"
+            );
+            // Cone: the upper arm within 70° of its rest direction (its parent does not move).
+            let a = (e - s).angle_between(e0 - s0);
+            assert!(
+                a <= 70f64.to_radians() + 1e-3,
+                "{solver:?} frame {k}: {}°",
+                a.to_degrees()
+            );
+            // Hinge: the elbow turns from rest about one fixed axis in every frame.
+            let d =
+                f.local_rotation("b_RightForeArm_07", t) * rest_q("b_RightForeArm_07").inverse();
+            let (axis, angle) = d.to_axis_angle();
+            if angle.abs() > 0.05 {
+                let axis = if angle < 0.0 { -axis } else { axis };
+                let fixed = *hinge_axis.get_or_insert(axis);
+                assert!(
+                    axis.cross(fixed).length() < 1e-3,
+                    "{solver:?} frame {k}: the elbow swings off its hinge"
+                );
+            }
+        }
+    }
+}

@@ -73,9 +73,10 @@ impl Constraints {
     /// (`JOINT:hinge:MIN..MAX[:X,Y,Z]`, `JOINT:cone:DEG`, degrees; JOINT a joint name).
     ///
     /// A hinge's axis is, in order: the `X,Y,Z` given (world direction in the rest pose); with a
-    /// pole, the axis that bends the joint out towards the pole for positive angles (so an elbow
-    /// limited to `0..150` never bends backwards); the axis of the joint's bend in the rest pose
-    /// (positive = bending further).
+    /// pole, the normal of the plane through the bone into the joint and the pole, turned so that
+    /// positive angles bend the joint out towards the pole (an elbow limited to `0..150` never
+    /// bends backwards); the axis of the joint's bend in the rest pose (positive = bending
+    /// further).
     ///
     /// # Errors
     /// [`Error::InvalidOption`] (`--limit`, `--pole`) naming the specification: malformed, an
@@ -187,17 +188,24 @@ impl Constraints {
 /// The world hinge axis of joint `i` in the rest pose (see [`Constraints::from_specs`]).
 fn default_hinge_axis(rest: &Pose, i: usize, pole: Option<DVec3>) -> Option<DVec3> {
     let child = (rest.position(i + 1) - rest.position(i)).normalize_or_zero();
+    let inward = if i == 0 {
+        DVec3::ZERO
+    } else {
+        (rest.position(i) - rest.position(i - 1)).normalize_or_zero()
+    };
     if let Some(p) = pole {
-        let w = (p - rest.position(i)).reject_from(child);
-        let axis = w.cross(child);
-        if axis.length() > 1e-9 && child != DVec3::ZERO {
+        // The bend plane holds the bone into the joint and the pole: the axis is its normal,
+        // turned so that positive angles carry the child bone away from the pole.
+        let along = if inward == DVec3::ZERO { child } else { inward };
+        let w = (p - rest.position(i)).reject_from(along);
+        let axis = w.cross(along);
+        if axis.length() > 1e-9 && along != DVec3::ZERO {
             return Some(axis.normalize());
         }
     }
     if i == 0 {
         return None;
     }
-    let inward = (rest.position(i) - rest.position(i - 1)).normalize_or_zero();
     let axis = inward.cross(child);
     (axis.length() > 1e-6).then(|| axis.normalize())
 }
@@ -285,9 +293,12 @@ pub(crate) fn face_pole(p: &mut [DVec3], pole: DVec3) -> bool {
 }
 
 /// For a hinge on joint `i + 1`, the twist of joint `i` about its own bone (world axis `bone`)
-/// that lets the hinge reach the child direction `wanted` (world): the hinge axis is turned to
-/// the normal of the plane of `bone` and `wanted`, with the sign that keeps the hinge angle
-/// inside its range (or nearest to it). Returns the twist angle.
+/// that lets the hinge reach the child direction `wanted` (world). The hinge turns the child
+/// bone on a cone about its axis (half-angle: the rest angle between axis and child), so the
+/// twist must bring the axis to that same angle from `wanted`: with the axis split into parts
+/// along and across the bone, `a(ψ)·f = a∥·f + cos ψ a⊥·f + sin ψ (u × a⊥)·f = a·c`. Of the (up to
+/// two) solutions, the one whose hinge angle falls in `range` (or nearest to it) wins, then the
+/// smaller twist. Returns the twist angle (radians).
 pub(crate) fn hinge_twist(
     hinge_axis_world: DVec3,
     rest_child_world: DVec3,
@@ -296,15 +307,24 @@ pub(crate) fn hinge_twist(
     range: (f64, f64),
 ) -> Option<f64> {
     let u = bone.try_normalize()?;
-    let a = hinge_axis_world.reject_from(u).try_normalize()?;
-    let plane_normal = u.cross(wanted).try_normalize()?;
+    let a = hinge_axis_world.try_normalize()?;
+    let f = wanted.try_normalize()?;
+    let c = rest_child_world.try_normalize()?;
+    let (along, across) = (a.dot(u) * u, a.reject_from(u));
+    let (cc, aa, bb) = (along.dot(f), across.dot(f), u.cross(across).dot(f));
+    let r = aa.hypot(bb);
+    if r < 1e-12 {
+        return None;
+    }
+    let phi = bb.atan2(aa);
+    let delta = ((a.dot(c) - cc) / r).clamp(-1.0, 1.0).acos();
     let mut best: Option<(f64, f64)> = None;
-    for target in [plane_normal, -plane_normal] {
-        let psi = a.cross(target).dot(u).atan2(a.dot(target));
+    for psi in [phi + delta, phi - delta] {
+        let psi =
+            (psi + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
         let q = DQuat::from_axis_angle(u, psi);
-        let (axis, c0) = (q * hinge_axis_world, q * rest_child_world);
-        let axis = axis.normalize();
-        let (c0p, wp) = (c0.reject_from(axis), wanted.reject_from(axis));
+        let (axis, c0) = (q * a, q * c);
+        let (c0p, wp) = (c0.reject_from(axis), f.reject_from(axis));
         let theta = c0p.cross(wp).dot(axis).atan2(c0p.dot(wp));
         let miss = (range.0 - theta).max(theta - range.1).max(0.0);
         let score = miss * 10.0 + psi.abs();
