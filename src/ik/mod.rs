@@ -4,7 +4,8 @@
 //! Pipeline of [`bake_ik`]: build a [`Chain`] (the lab arm, a straight chain, or a `ROOT..TIP`
 //! path in a rig via [`rig::RigDocument`]) → place the target path on a drawing plane
 //! ([`crate::path`]) and resample it to one target per frame → solve every frame with an
-//! [`IkSolver`], warm-started from the previous frame → write the glTF
+//! [`IkSolver`] under the job's [`Constraints`] (pole, joint limits), warm-started from the
+//! previous frame → write the glTF
 //! ([`crate::export::skin`]) and the [`IkReport`].
 //!
 //! Conventions: world coordinates are glTF's (+Y up, right-handed, scene units); rotations are
