@@ -38,6 +38,17 @@ Options (after the `--`):
   --frame F                 frame to evaluate and render (default: the middle
                             of the scene's frame range, which is fitted to the
                             union of the imported actions' frame ranges)
+  --playback                compare what Blender evaluates at --check-frames N
+                            frames (default 5) with an independent numpy
+                            reading of the file playing its first animation
+                            (scripts/blender/playback_check.py): largest
+                            distance <= --tolerance (2e-3); morph meshes:
+                            >= 99 % smooth faces, shading normals p95 <= 3°
+  --switch-actions          with --playback: play a rig's other actions, switch
+                            back to the bake's and check again
+  --helper                  import with scripts/blender/scenebake_import.py
+                            and check the fps, frame range, smooth shading and
+                            active action it set against asset.extras
 
 Exit status: 0 if every file imported and met every expectation; 1 otherwise
 (the failures are listed, naming the file and what failed); 2 on bad options.
@@ -60,6 +71,10 @@ if "bool" not in numpy.__dict__:
 
 import bpy  # noqa: E402  (must come after the numpy shim)
 from mathutils import Vector  # noqa: E402
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "blender"))
+import playback_check  # noqa: E402
+import scenebake_import  # noqa: E402
 
 PROG = "blender_check"
 
@@ -117,6 +132,20 @@ def parse_args(argv):
                     help="render resolution (default 480x270)")
     ap.add_argument("--frame", type=int, metavar="F",
                     help="frame to render (default: middle of the scene frame range)")
+    ap.add_argument("--helper", action="store_true",
+                    help="import with scripts/blender/scenebake_import.py (fps, frame range, "
+                         "smooth shading, the bake's action) instead of plain File > Import, "
+                         "and check what it set against the file's asset.extras.scenebake")
+    ap.add_argument("--playback", action="store_true",
+                    help="compare what Blender evaluates at several frames with an independent "
+                         "reading of the file (scripts/blender/playback_check.py)")
+    ap.add_argument("--check-frames", type=int, default=5, metavar="N",
+                    help="frames checked by --playback (default 5, spread over the range)")
+    ap.add_argument("--tolerance", type=float, default=2e-3, metavar="D",
+                    help="--playback: largest distance accepted, scene units (default 2e-3)")
+    ap.add_argument("--switch-actions", action="store_true",
+                    help="--playback: also play every other action of an armature, switch back "
+                         "and check the bake again")
     return ap.parse_args(argv)
 
 
@@ -479,6 +508,50 @@ def render_still(path, width, height, mesh_objs):
             f"bbox size ({extent.x:.3g}, {extent.y:.3g}, {extent.z:.3g}), camera distance {dist:.3g})")
 
 
+def helper_summary(info):
+    return (f"{info['fps']:g} fps, frames {info['frame_start']}-{info['frame_end']}, "
+            f"active actions {', '.join(info['actions']) or 'none'} ({info['fcurves']} fcurves), "
+            f"{info['smooth_faces']} of {info['faces']} faces smooth")
+
+
+def helper_failures(path, info, objects):
+    """What scenebake_import.py set, checked against the file's own record."""
+    failures = []
+    doc = read_gltf_json(path)
+    rec = scenebake_import.read_playback(doc)
+    if rec is None:
+        return ["--helper: the file has no asset.extras.scenebake (fps, frame range)"]
+    fps, start, end, name = rec
+    scene = bpy.context.scene
+    if abs(scene.render.fps / scene.render.fps_base - fps) > 1e-6 * fps:
+        failures.append(f"--helper: scene fps {scene.render.fps / scene.render.fps_base:g}, "
+                        f"the bake's is {fps:g}")
+    if (scene.frame_start, scene.frame_end) != (start, end):
+        failures.append(f"--helper: scene frames {scene.frame_start}-{scene.frame_end}, "
+                        f"the bake's are {start}-{end}")
+    if info["actions"] and info["fcurves"] == 0:
+        failures.append("--helper: the bake's actions hold no fcurves")
+    if info["smooth_faces"] != info["faces"]:
+        failures.append(f"--helper: {info['faces'] - info['smooth_faces']} faces left flat")
+    # Every object the bake animates has the bake's action active.
+    anims = doc.get("animations") or []
+    if anims:
+        wanted = name or anims[0].get("name")
+        owners = scenebake_import.animated_ids(objects)
+        playing = [ad.action.name if ad.action else None for _o, ad in owners
+                   if any(t.name == wanted for t in ad.nla_tracks)]
+        if not playing:
+            failures.append(f"--helper: no object has an NLA track for animation {wanted!r}")
+        for _o, ad in owners:
+            tracks = {t.name: t for t in ad.nla_tracks}
+            if wanted in tracks and tracks[wanted].strips and \
+                    ad.action != tracks[wanted].strips[0].action:
+                failures.append(f"--helper: {_o.name}: active action "
+                                f"{ad.action.name if ad.action else None!r}, not the bake's "
+                                f"{tracks[wanted].strips[0].action.name!r}")
+    return failures
+
+
 def render_paths(template, files):
     """Output path per input file for --render.
 
@@ -521,14 +594,20 @@ def check_file(path, args, render_out):
             return None, [f"--auto: malformed glTF JSON ({type(e).__name__}: {e})"]
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
+    helper_info = None
     try:
-        result = bpy.ops.import_scene.gltf(filepath=os.path.abspath(path))
+        if args.helper:
+            helper_info = scenebake_import.import_bake(path, camera=False)
+            result = {"FINISHED"}
+        else:
+            result = bpy.ops.import_scene.gltf(filepath=os.path.abspath(path))
     except Exception as e:  # the importer raises RuntimeError on bad files
         return None, [f"import failed: {e}"]
     if "FINISHED" not in result:
         return None, [f"import did not finish: {sorted(result)}"]
 
     scene = bpy.context.scene
+    fps_import = scene.render.fps
     objects = list(scene.objects)
     if not objects:
         return None, ["import produced no objects"]
@@ -536,7 +615,8 @@ def check_file(path, args, render_out):
     # Blender 3.4's importer leaves the scene at frames 1-250 whatever the
     # animations span; fit the scene range to the imported actions, as a
     # user would, so that the default --frame lands inside the animation.
-    if bpy.data.actions:
+    # (The helper sets the range from the bake itself.)
+    if bpy.data.actions and not args.helper:
         starts, ends = zip(*(a.frame_range for a in bpy.data.actions))
         scene.frame_start = math.floor(min(starts) + 1e-3)
         scene.frame_end = max(math.ceil(max(ends) - 1e-3), scene.frame_start)
@@ -549,6 +629,16 @@ def check_file(path, args, render_out):
     summary = summarize(objects)
     summary += f"; scene frames {scene.frame_start}-{scene.frame_end}, at frame {frame}"
     failures = check_expectations(objects, args, auto)
+    if helper_info is not None:
+        summary += "\n    helper: " + helper_summary(helper_info)
+        failures += helper_failures(path, helper_info, objects)
+    if args.playback:
+        lines, bad = playback_check.check(path, objects, fps_import, frames=args.check_frames,
+                                          tolerance=args.tolerance,
+                                          switch_actions=args.switch_actions)
+        summary += "".join("\n    " + line for line in lines)
+        failures += bad
+        scene.frame_set(frame)
     if render_out:
         try:
             summary += "\n    " + render_still(render_out, *args.resolution,

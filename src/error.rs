@@ -105,7 +105,7 @@ pub enum Error {
     #[error("{0}")]
     Chain(String),
     /// A `--chain` end names no node of the rig.
-    #[error("{path}: --chain: no node named `{joint}` (use a node name or `#N` for node N)")]
+    #[error("{path}: --chain: no node named `{joint}` (use a node name, `#N` for node N, quoted in a shell as in '#13..#15', or Blender's `Node_N`; `scenebake inspect {}` lists them)", .path.display())]
     UnknownJoint {
         /// The rig file.
         path: PathBuf,

@@ -102,6 +102,7 @@ fn hanging_spring_settles_at_the_static_stretch() {
             b: 1,
             rest,
             stiffness: k,
+            compression: k,
             kind: SpringKind::Stretch,
         };
         let body = model(
@@ -144,6 +145,7 @@ fn free_spring_conserves_momentum_and_dissipates_energy() {
             b: 1,
             rest,
             stiffness: k,
+            compression: k,
             kind: SpringKind::Stretch,
         };
         let start = vec![DVec3::new(-0.75, 0.0, 0.0), DVec3::new(0.75, 0.0, 0.0)];

@@ -78,6 +78,23 @@ fn gltf_normals(m: &Morph, f: usize) -> Vec<Vec3> {
         .collect()
 }
 
+/// The VAT's normal agrees with the glTF's: to 1e-6 at baked frames, and within the documented
+/// lean at frame 0 (whose glTF NORMAL is leaned so importers shade the cloth smooth, see
+/// `scenebake::export::shading`) and where a normal is still exactly its frame-0 value.
+fn normals_agree(frame: usize, vat: Vec3, gltf: Vec3, vat_frame0: Vec3) -> bool {
+    if frame > 0 && vat != vat_frame0 {
+        return (vat - gltf).abs().max_element() <= 1e-6;
+    }
+    // Frame 0, or a normal still exactly its frame-0 value (its NORMAL delta stays zero).
+    let angle = vat
+        .normalize()
+        .dot(gltf.normalize())
+        .min(1.0)
+        .acos()
+        .to_degrees();
+    angle <= scenebake::export::shading::LEAN_DEGREES as f32 + 1e-3
+}
+
 #[test]
 fn vat_pixels_match_the_gltf_morph_cache_at_every_frame() {
     let dir = tempfile::tempdir().unwrap();
@@ -122,7 +139,7 @@ fn vat_pixels_match_the_gltf_morph_cache_at_every_frame() {
                 want[v]
             );
             assert!(
-                (nrm.at(f, v) - want_n[v]).abs().max_element() <= 1e-6,
+                normals_agree(f, nrm.at(f, v), want_n[v], nrm.at(0, v)),
                 "normal frame {f} vertex {v}"
             );
             assert!((nrm.at(f, v).length() - 1.0).abs() < 1e-5, "unit normals");
@@ -218,7 +235,12 @@ fn wide_meshes_wrap_into_several_rows_per_frame() {
                     <= 1e-6 * (1.0 + want[v].abs().max_element()),
                 "frame {f} vertex {v}"
             );
-            assert!((nrm.at(row, col) - want_n[v]).abs().max_element() <= 1e-6);
+            assert!(normals_agree(
+                f,
+                nrm.at(row, col),
+                want_n[v],
+                nrm.at(v / 50, v % 50)
+            ));
         }
         // The unused tail of each frame's last row is zero.
         for col in n % 50..50 {

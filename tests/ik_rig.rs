@@ -61,8 +61,9 @@ fn fox_spine_draws_a_heart_and_keeps_the_document() {
             &after.buffers[0][..before.doc.buffers().next().unwrap().length()],
             &before.buffers[0][..before.doc.buffers().next().unwrap().length()]
         );
-        // Original animations unchanged.
-        for (a, b) in before.doc.animations().zip(after.doc.animations()) {
+        // The bake plays first; the original animations follow unchanged.
+        assert_eq!(after.doc.animations().next().unwrap().name(), Some("ik"));
+        for (a, b) in before.doc.animations().zip(after.doc.animations().skip(1)) {
             assert_eq!(a.name(), b.name());
             assert_eq!(a.channels().count(), b.channels().count());
         }
@@ -71,7 +72,7 @@ fn fox_spine_draws_a_heart_and_keeps_the_document() {
         let tracks = after.animation("ik");
         let head = after.node_by_name("b_Head_05");
         let spine = after.node_by_name("b_Spine01_02");
-        let (times, _) = tracks.rotation.values().next().unwrap();
+        let (times, _) = tracks.rotation.get(&spine).unwrap();
         assert_eq!(times.len(), r.frames);
         let rest = before.animation("Walk"); // any other animation: only used for its absence of our nodes
         let _ = rest;
@@ -262,4 +263,180 @@ fn bad_chains_are_clear_errors() {
     .unwrap_err();
     assert!(e.to_string().contains("--chain"), "{e}");
     assert!(!dir.path().join("x.glb").exists());
+}
+
+/// What a viewer plays is the bake: it is animations[0], and it keys translation, rotation and
+/// scale of every joint of the skin (constant ones at the input's own node transforms, read here
+/// from the input file), so no bone keeps another action's pose when Blender switches actions.
+/// The fps and frame range are in asset.extras.
+#[test]
+fn the_rig_bake_plays_first_and_poses_every_joint() {
+    let dir = tempfile::tempdir().unwrap();
+    for (rig, chain) in [
+        ("Fox.glb", "b_Spine01_02..b_Head_05"),
+        ("RiggedSimple.gltf", "Bone..Bone.001"),
+    ] {
+        let job = IkJob {
+            rig: Some(mesh(rig)),
+            chain: Some(chain.into()),
+            curve: Some(CurveKind::Circle),
+            fps: 24.0,
+            output: dir.path().join(format!("{rig}.glb")),
+            ..Default::default()
+        };
+        let r = bake_ik(&job, &mut |_, _| {}).unwrap();
+        let before = load(&mesh(rig));
+        let after = load(&job.output);
+        let first = after.doc.animations().next().unwrap();
+        assert_eq!(first.name(), Some("ik"), "{rig}");
+        let mut keyed = std::collections::BTreeSet::new();
+        for ch in first.channels() {
+            let path = match ch.target().property() {
+                gltf::animation::Property::Translation => "translation",
+                gltf::animation::Property::Rotation => "rotation",
+                gltf::animation::Property::Scale => "scale",
+                gltf::animation::Property::MorphTargetWeights => "weights",
+            };
+            keyed.insert((ch.target().node().index(), path));
+        }
+        let ik = after.animation("ik");
+        let end = (r.frames - 1) as f32 / 24.0;
+        for skin in after.doc.skins() {
+            for joint in skin.joints() {
+                let j = joint.index();
+                for path in ["translation", "rotation", "scale"] {
+                    assert!(
+                        keyed.contains(&(j, path)),
+                        "{rig}: joint #{j} {path} not keyed"
+                    );
+                }
+                // Constant keys hold the input's own transform over the whole bake.
+                let (t, rot, s) = before.doc.nodes().nth(j).unwrap().transform().decomposed();
+                if let Some((times, vals, _)) = ik.translation.get(&j) {
+                    assert_eq!(times.first(), Some(&0.0));
+                    assert!((times.last().unwrap() - end).abs() < 1e-6);
+                    for v in vals {
+                        for c in 0..3 {
+                            assert!(
+                                (v[c] - t[c]).abs() <= 1e-6 * (1.0 + t[c].abs()),
+                                "{rig} #{j}"
+                            );
+                        }
+                    }
+                }
+                if let Some((_, vals, _)) = ik.scale.get(&j) {
+                    for v in vals {
+                        for c in 0..3 {
+                            assert!((v[c] - s[c]).abs() < 1e-5, "{rig} #{j} scale");
+                        }
+                    }
+                }
+                if let Some((times, vals)) = ik.rotation.get(&j) {
+                    if times.len() == 2 {
+                        for v in vals {
+                            let dot: f32 = v.iter().zip(&rot).map(|(a, b)| a * b).sum();
+                            assert!(dot.abs() > 1.0 - 1e-6, "{rig} #{j} rotation");
+                        }
+                    }
+                }
+            }
+        }
+        // Every joint another animation moves, the bake keys too (Blender keeps the pose of
+        // bones the active action does not key).
+        for other in after.doc.animations().skip(1) {
+            for ch in other.channels() {
+                let n = ch.target().node().index();
+                let is_joint = after
+                    .doc
+                    .skins()
+                    .any(|s| s.joints().any(|j| j.index() == n));
+                if is_joint {
+                    let path = ch.target().property();
+                    assert!(
+                        first.channels().any(
+                            |c| c.target().node().index() == n && c.target().property() == path
+                        ),
+                        "{rig}: {:?} keys #{n} {path:?}, the bake does not",
+                        other.name()
+                    );
+                }
+            }
+        }
+        let extras: serde_json::Value =
+            serde_json::from_str(after.doc.as_json().asset.extras.as_ref().unwrap().get()).unwrap();
+        assert_eq!(
+            extras["scenebake"],
+            serde_json::json!({"fps": 24.0, "frame_start": 0, "frame_end": r.frames - 1, "animation": "ik"})
+        );
+    }
+}
+
+/// A rig whose weights do not sum to 1 (RiggedSimple with 40 vertices' weights halved): the
+/// bake renormalises them, says so, and the output's weights sum to 1 (read back with the gltf
+/// crate).
+#[test]
+fn unnormalised_weights_are_renormalised_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = mesh("RiggedSimple.gltf");
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&src).unwrap()).unwrap();
+    let acc = &json["accessors"][json["meshes"][0]["primitives"][0]["attributes"]["WEIGHTS_0"]
+        .as_u64()
+        .unwrap() as usize];
+    let view = &json["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+    let (offset, stride) = (
+        view["byteOffset"].as_u64().unwrap() as usize
+            + acc["byteOffset"].as_u64().unwrap_or(0) as usize,
+        view["byteStride"].as_u64().unwrap_or(16) as usize,
+    );
+    let mut bin = std::fs::read(mesh("RiggedSimple0.bin")).unwrap();
+    for v in 0..40 {
+        for c in 0..4 {
+            let at = offset + v * stride + c * 4;
+            let w = f32::from_le_bytes(bin[at..at + 4].try_into().unwrap()) * 0.5;
+            bin[at..at + 4].copy_from_slice(&w.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.path().join("RiggedSimple0.bin"), bin).unwrap();
+    std::fs::copy(&src, dir.path().join("halved.gltf")).unwrap();
+    let job = IkJob {
+        rig: Some(dir.path().join("halved.gltf")),
+        chain: Some("Bone..Bone.001".into()),
+        curve: Some(CurveKind::Circle),
+        output: dir.path().join("out.glb"),
+        ..Default::default()
+    };
+    let r = bake_ik(&job, &mut |_, _| {}).unwrap();
+    assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
+    assert!(
+        r.warnings[0].contains(
+            "halved.gltf: renormalised the skin weights of 40 vertices (they summed to 0.500–0.500"
+        ),
+        "{}",
+        r.warnings[0]
+    );
+    let out = load(&job.output);
+    let mesh0 = out.doc.meshes().next().unwrap();
+    let prim = mesh0.primitives().next().unwrap();
+    let reader = prim.reader(|b| Some(&out.buffers[b.index()]));
+    let sums: Vec<f64> = reader
+        .read_weights(0)
+        .unwrap()
+        .into_f32()
+        .map(|w| w.iter().map(|&x| f64::from(x)).sum())
+        .collect();
+    assert_eq!(sums.len(), 160);
+    for (v, s) in sums.iter().enumerate() {
+        assert!((s - 1.0).abs() < 1e-7, "vertex {v} sums to {s}");
+    }
+    // The unmodified rig needs no repair and gets no warning.
+    let clean = bake_ik(
+        &IkJob {
+            rig: Some(mesh("RiggedSimple.gltf")),
+            output: dir.path().join("clean.glb"),
+            ..job
+        },
+        &mut |_, _| {},
+    )
+    .unwrap();
+    assert!(clean.warnings.is_empty(), "{:?}", clean.warnings);
 }

@@ -5,10 +5,11 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 use scenebake::bake::cloth::{ClothJob, ClothSource};
 use scenebake::cloth::collide::{ColliderSpec, DEFAULT_FRICTION};
+use scenebake::cloth::material::MaterialPreset;
 use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::SolverKind;
 use scenebake::export::Interpolation;
-use scenebake::export::{SparseMode, VatMode};
+use scenebake::export::{BasisSize, QuantizeMode, SparseMode, VatMode};
 use scenebake::glam::DVec3;
 
 /// Simulate a cloth or soft body and write it as a morph-target glTF.
@@ -43,22 +44,41 @@ pub struct ClothArgs {
     /// Solver steps per frame.
     #[arg(long, default_value_t = 1, value_name = "S")]
     pub substeps: usize,
-    /// Time integrator.
-    #[arg(long, value_enum, default_value_t = SolverArg::Fast)]
-    pub solver: SolverArg,
-    /// Local/global iterations per step (fast solver).
-    #[arg(long, default_value_t = 10, value_name = "K")]
-    pub iterations: usize,
-    /// Newton stops when the residual ‖∇g‖ / weight falls below this.
-    #[arg(long, default_value_t = scenebake::cloth::newton::DEFAULT_TOLERANCE, value_name = "R")]
-    pub tolerance: f64,
-    /// Newton iterations per step at most; a step that hits the cap is flagged in the report.
-    #[arg(long, default_value_t = scenebake::cloth::newton::DEFAULT_MAX_ITERATIONS, value_name = "N")]
-    pub max_newton: usize,
-    /// Spring stiffness in N/m [default: 1000; lab-cloth 100].
+    /// Time integrator: newton (converged implicit Euler, the default) or fast (local/global).
+    #[arg(long, value_enum)]
+    pub solver: Option<SolverArg>,
+    /// Every solver stops a step when ρ = ‖∇g‖/‖M·g‖ (unbalanced force relative to the weight)
+    /// falls below R; steps that end above it are flagged [default: 0.1].
+    #[arg(long, value_name = "R")]
+    pub tolerance: Option<f64>,
+    /// Iterations per step at most, for whichever solver runs [default: newton 50, fast 500].
+    #[arg(long, value_name = "N")]
+    pub max_iterations: Option<usize>,
+    /// Local/global iterations per step at most (fast solver; alias of --max-iterations).
+    #[arg(long, value_name = "K")]
+    pub iterations: Option<usize>,
+    /// Newton iterations per step at most (alias of --max-iterations for Newton).
+    #[arg(long, value_name = "N")]
+    pub max_newton: Option<usize>,
+    /// The fabric of a surface mesh, mapped onto its edges by rest length and area [default:
+    /// cotton].
+    #[arg(long, value_enum)]
+    pub material: Option<MaterialArg>,
+    /// The fabric's stretch modulus in N/m (force per unit width per unit strain).
+    #[arg(long, value_name = "N/M")]
+    pub stretch: Option<f64>,
+    /// The fabric's bending rigidity in N·m.
+    #[arg(long, value_name = "N·M")]
+    pub bend: Option<f64>,
+    /// The fabric's compression stiffness as a fraction of its stretch stiffness (0..1).
+    #[arg(long, value_name = "FRACTION")]
+    pub compression: Option<f64>,
+    /// Every spring's stiffness in N/m, symmetric in tension and compression: the labs' model
+    /// instead of a material [lab-cloth 100; .tet 1000].
     #[arg(long, value_name = "K")]
     pub stiffness: Option<f64>,
-    /// Bending-spring stiffness in N/m, 0 for none [default: 2; lab-cloth = --stiffness].
+    /// Bending-spring stiffness in N/m, 0 for none (the labs' model) [default with --stiffness:
+    /// 2; lab-cloth = --stiffness].
     #[arg(long, value_name = "K")]
     pub bend_stiffness: Option<f64>,
     /// Mass-proportional damping in 1/s, 0 for plain implicit Euler [default: 0.5; lab-cloth 0.2].
@@ -67,7 +87,7 @@ pub struct ClothArgs {
     /// Mass per particle in kg (instead of --density) [lab-cloth: 1].
     #[arg(long, value_name = "KG")]
     pub mass: Option<f64>,
-    /// Density: kg/m² for surfaces [default 0.2], kg/m³ for .tet volumes [default 50].
+    /// Density: kg/m² for surfaces [default: the material's], kg/m³ for .tet volumes [default 50].
     #[arg(long, value_name = "D")]
     pub density: Option<f64>,
     /// Gravity in m/s² [default: 0,-9.81,0; lab-cloth 0,-0.3,0].
@@ -115,6 +135,25 @@ pub struct ClothArgs {
     /// Store morph-target deltas as sparse accessors (changed vertices only) where smaller.
     #[arg(long, value_enum, default_value_t = SparseArg::Auto)]
     pub sparse: SparseArg,
+    /// Write the motion as a base shape plus K basis shapes (morph targets) with per-frame
+    /// weights, from a truncated SVD of the frame deltas, instead of one target per frame;
+    /// `auto` picks the fewest targets that keep every baked frame within --basis-tolerance
+    /// (measured as a player computes it).
+    #[arg(long, value_name = "K|auto", value_parser = parse_basis)]
+    pub basis: Option<BasisSize>,
+    /// Largest vertex distance (scene units) allowed between a played frame and the bake, for
+    /// --basis auto and --quantize auto [default: --keyframe-tolerance, else 0.001].
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    pub basis_tolerance: Option<f64>,
+    /// Most morph targets written (for engines that cap them); an error if the tolerance
+    /// cannot be met within N.
+    #[arg(long, value_name = "N")]
+    pub max_targets: Option<usize>,
+    /// KHR_mesh_quantization for a --basis cache: int16 positions and deltas, int8 normals,
+    /// dequantised by the node's scale and translation; auto quantises when the measured error
+    /// stays within --basis-tolerance [default: auto with --basis].
+    #[arg(long, value_enum, value_name = "MODE")]
+    pub quantize: Option<QuantizeArg>,
     /// Scale the input file about its origin by S (before --translate; not for presets).
     #[arg(long, default_value_t = 1.0, value_name = "S")]
     pub scale: f64,
@@ -122,6 +161,11 @@ pub struct ClothArgs {
     /// in the placed coordinates.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub translate: Option<DVec3>,
+    /// The input file's up axis: z turns a Z-up file (Blender, many OBJ exporters) to glTF's
+    /// Y-up, (x, y, z) → (x, z, −y), before --scale and --translate; pins, colliders and
+    /// --gravity are in the turned (Y-up) coordinates.
+    #[arg(long, value_enum, default_value_t = UpArg::Y)]
+    pub up: UpArg,
     /// A static collider (repeatable): plane:NX,NY,NZ,D (the half-space n·x ≤ D is solid, e.g.
     /// plane:0,1,0,0 is the ground y = 0), sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1, or
     /// mesh:FILE.obj (closed meshes are solid, open ones two-sided). Written into the glTF as
@@ -152,6 +196,15 @@ pub struct ClothArgs {
     pub seed: u64,
 }
 
+/// `--up` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum UpArg {
+    /// Y up (glTF's convention; kept as it is).
+    Y,
+    /// Z up (turned to Y up).
+    Z,
+}
+
 /// `--vat-mode` values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum VatModeArg {
@@ -159,6 +212,17 @@ pub enum VatModeArg {
     Absolute,
     /// Offsets from the base mesh (frame 0).
     Offset,
+}
+
+/// `--quantize` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum QuantizeArg {
+    /// Where the measured error stays within the tolerance.
+    Auto,
+    /// Always.
+    On,
+    /// Never.
+    Off,
 }
 
 /// `--sparse` values.
@@ -175,6 +239,21 @@ pub enum SparseArg {
 pub enum ClothPreset {
     /// The labs' 2×2 m grid pinned at two corners.
     LabCloth,
+}
+
+/// `--material` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MaterialArg {
+    /// Light woven cotton: 1000 N/m, 5e-6 N·m, 0.15 kg/m².
+    Cotton,
+    /// Silk: 300 N/m, 1e-6 N·m, 0.081 kg/m².
+    Silk,
+    /// 11 oz denim: 3000 N/m, 5e-5 N·m, 0.373 kg/m².
+    Denim,
+    /// Garment leather: 8000 N/m, 5e-4 N·m, 0.9 kg/m².
+    Leather,
+    /// 1 mm rubber sheet: 2000 N/m, 1.7e-4 N·m, 1.1 kg/m², resists compression fully.
+    Rubber,
 }
 
 /// `--solver` values.
@@ -209,6 +288,11 @@ fn parse_vec3(s: &str) -> Result<DVec3, String> {
         .map_err(|e| e.to_string().replace("invalid value for : ", ""))
 }
 
+fn parse_basis(s: &str) -> Result<BasisSize, String> {
+    s.parse::<BasisSize>()
+        .map_err(|e| e.to_string().replace("invalid value for --basis: ", ""))
+}
+
 fn parse_collider(s: &str) -> Result<ColliderSpec, String> {
     s.parse::<ColliderSpec>()
         .map_err(|e| e.to_string().replace("invalid value for --collider: ", ""))
@@ -235,13 +319,32 @@ impl ClothArgs {
         job.frames = self.frames;
         job.fps = self.fps;
         job.substeps = self.substeps;
-        job.solver = match self.solver {
-            SolverArg::Fast => SolverKind::Fast,
-            SolverArg::Newton => SolverKind::Newton,
-        };
-        job.iterations = self.iterations;
-        job.tolerance = self.tolerance;
-        job.max_newton = self.max_newton;
+        if let Some(solver) = self.solver {
+            job.solver = match solver {
+                SolverArg::Fast => SolverKind::Fast,
+                SolverArg::Newton => SolverKind::Newton,
+            };
+        }
+        if let Some(k) = self.iterations {
+            job.iterations = k;
+        }
+        if let Some(r) = self.tolerance {
+            job.tolerance = r;
+        }
+        if let Some(n) = self.max_newton {
+            job.max_newton = n;
+        }
+        job.max_iterations = self.max_iterations;
+        job.material = self.material.map(|m| match m {
+            MaterialArg::Cotton => MaterialPreset::Cotton,
+            MaterialArg::Silk => MaterialPreset::Silk,
+            MaterialArg::Denim => MaterialPreset::Denim,
+            MaterialArg::Leather => MaterialPreset::Leather,
+            MaterialArg::Rubber => MaterialPreset::Rubber,
+        });
+        job.stretch = self.stretch;
+        job.bend = self.bend;
+        job.compression = self.compression;
         job.stiffness = self.stiffness;
         job.bend_stiffness = self.bend_stiffness;
         job.damping = self.damping;
@@ -266,8 +369,17 @@ impl ClothArgs {
             SparseArg::Auto => SparseMode::Auto,
             SparseArg::Off => SparseMode::Off,
         };
+        job.basis = self.basis;
+        job.basis_tolerance = self.basis_tolerance;
+        job.max_targets = self.max_targets;
+        job.quantize = self.quantize.map(|q| match q {
+            QuantizeArg::Auto => QuantizeMode::Auto,
+            QuantizeArg::On => QuantizeMode::On,
+            QuantizeArg::Off => QuantizeMode::Off,
+        });
         job.scale = self.scale;
         job.translate = self.translate.unwrap_or(DVec3::ZERO);
+        job.up_z = self.up == UpArg::Z;
         job.colliders = self.colliders.clone();
         job.thickness = self.thickness;
         job.friction = self.friction;

@@ -26,7 +26,9 @@ pub struct IkArgs {
     /// new animation.
     #[arg(long, value_name = "FILE.glb|.gltf")]
     pub rig: Option<PathBuf>,
-    /// The chain in --rig, ROOT..TIP: joint names, or #N for node N.
+    /// The chain in --rig, ROOT..TIP: joint names, #N for node N (quote it: a shell drops
+    /// everything after an unquoted #, so write --chain '#13..#15'), or Node_N as Blender names
+    /// unnamed nodes. `scenebake inspect FILE` lists the nodes with their #N.
     #[arg(long, value_name = "ROOT..TIP")]
     pub chain: Option<String>,
     /// IK solver.

@@ -5,6 +5,7 @@ pub mod cloth;
 pub mod ik;
 pub mod inspect;
 pub mod interrupt;
+pub mod open;
 pub mod progress;
 pub mod scene;
 
@@ -36,6 +37,9 @@ pub enum Command {
     Run(scene::RunArgs),
     /// Describe a glTF/GLB file and check the invariants scenebake's exports promise.
     Inspect(inspect::InspectArgs),
+    /// Open a bake in Blender, set up to play it (fps, frame range, smooth shading, the bake's
+    /// action, a camera).
+    Open(open::OpenArgs),
 }
 
 /// One finished job, for summaries.
@@ -53,6 +57,8 @@ pub struct Outcome {
     pub seconds: f64,
     /// Bytes written.
     pub bytes: u64,
+    /// Every file written (report excluded) with its size in bytes.
+    pub files: Vec<(PathBuf, u64)>,
     /// The job's own report.
     pub report: serde_json::Value,
 }
@@ -62,6 +68,7 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
     match &cli.command {
         Command::Cloth(args) => {
             let outcome = run_cloth(args, "cloth", cli.quiet)?;
+            print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
             }
@@ -69,6 +76,7 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
         }
         Command::Ik(args) => {
             let outcome = run_ik(args, "ik", cli.quiet)?;
+            print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
             }
@@ -76,6 +84,7 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
         }
         Command::Run(args) => scene::run(args, cli.quiet),
         Command::Inspect(args) => inspect::run(args),
+        Command::Open(args) => open::run(args),
     }
 }
 
@@ -104,6 +113,7 @@ pub fn run_cloth(args: &cloth::ClothArgs, label: &str, quiet: bool) -> anyhow::R
         frames: report.frames,
         seconds: start.elapsed().as_secs_f64(),
         bytes: report.output_bytes,
+        files: sizes(&report.output),
         report: json,
     })
 }
@@ -119,13 +129,14 @@ pub fn run_ik(args: &ik::IkArgs, label: &str, quiet: bool) -> anyhow::Result<Out
     });
     bar.finish_and_clear();
     let report = report?;
-    let bytes = report
+    let written: Vec<PathBuf> = report
         .files
         .iter()
         .filter(|f| Some(f.as_path()) != job.report.as_deref())
-        .filter_map(|f| std::fs::metadata(f).ok())
-        .map(|m| m.len())
-        .sum();
+        .cloned()
+        .collect();
+    let files = sizes(&written);
+    let bytes = files.iter().map(|(_, b)| b).sum();
     Ok(Outcome {
         kind: "ik",
         name: args
@@ -136,8 +147,29 @@ pub fn run_ik(args: &ik::IkArgs, label: &str, quiet: bool) -> anyhow::Result<Out
         frames: report.frames,
         seconds: start.elapsed().as_secs_f64(),
         bytes,
+        files,
         report: serde_json::to_value(&report)?,
     })
+}
+
+/// Each file with its size on disk (0 when it cannot be read).
+fn sizes(files: &[PathBuf]) -> Vec<(PathBuf, u64)> {
+    files
+        .iter()
+        .map(|f| (f.clone(), std::fs::metadata(f).map_or(0, |m| m.len())))
+        .collect()
+}
+
+/// `a.glb (1.2 MB)`, or one such entry per file, comma-separated.
+pub fn files_with_sizes(o: &Outcome) -> String {
+    if o.files.is_empty() {
+        return format!("{} ({})", o.output.display(), progress::bytes(o.bytes));
+    }
+    o.files
+        .iter()
+        .map(|(f, b)| format!("{} ({})", f.display(), progress::bytes(*b)))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Writes a JSON report atomically.
@@ -147,16 +179,34 @@ pub fn write_report(path: &Path, value: &serde_json::Value) -> anyhow::Result<()
         .with_context(|| "cannot write the report".to_string())
 }
 
+/// Prints the report's `warnings` on standard error, one line each (also with `--quiet`: a
+/// step above its tolerance or a repaired input is never silent).
+pub fn print_warnings(o: &Outcome) {
+    if let Some(list) = o.report["warnings"].as_array() {
+        for w in list.iter().filter_map(|w| w.as_str()) {
+            eprintln!("warning: {}: {w}", o.name);
+        }
+    }
+}
+
 /// The one-line summary printed after a job.
 pub fn summary_line(o: &Outcome) -> String {
     let r = &o.report;
     let extra = match o.kind {
         "cloth" => format!(
-            " ({} particles, {} springs, {} pinned; {:.2} ms/frame)",
+            " ({} particles, {} springs, {} pinned; {:.2} ms/frame; {} of {} frames within \
+             tolerance {})",
             r["particles"],
             r["springs"],
             r["pinned"],
-            r["ms_per_frame"].as_f64().unwrap_or(0.0)
+            r["ms_per_frame"].as_f64().unwrap_or(0.0),
+            o.frames
+                - r["unconverged_frames"]
+                    .as_array()
+                    .map_or(0, |a| a.len())
+                    .min(o.frames),
+            o.frames,
+            r["tolerance"]
         ),
         "ik" => format!(
             " ({} joints, {} solver, {} of {} targets reached, {} unreachable, {:.1} iterations/frame)",
@@ -164,13 +214,23 @@ pub fn summary_line(o: &Outcome) -> String {
         ),
         _ => String::new(),
     };
+    let basis = &r["cache"]["basis"];
+    let extra = if basis.is_object() {
+        format!(
+            "{extra}; basis {} targets, max error {:.3} mm, positions {}",
+            basis["targets"],
+            1e3 * basis["max_error"].as_f64().unwrap_or(0.0),
+            basis["quantization"]["positions"].as_str().unwrap_or("")
+        )
+    } else {
+        extra
+    };
     format!(
-        "{}: baked {} frames{} in {:.2} s; wrote {} ({})",
+        "{}: baked {} frames{} in {:.2} s; wrote {}",
         o.name,
         o.frames,
         extra,
         o.seconds,
-        o.output.display(),
-        progress::bytes(o.bytes)
+        files_with_sizes(o)
     )
 }

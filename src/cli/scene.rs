@@ -11,7 +11,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{anyhow, bail, Context};
 use clap::{Args, CommandFactory, Parser};
 
-use super::{progress, run_cloth, run_ik, summary_line, write_report, Cli, Command, Outcome};
+use super::{
+    print_warnings, progress, run_cloth, run_ik, summary_line, write_report, Cli, Command, Outcome,
+};
 
 /// Run the jobs of a scene file.
 #[derive(Debug, Args)]
@@ -64,7 +66,9 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
         let outcome = match &job.command {
             Command::Cloth(a) => run_cloth(a, &label, quiet),
             Command::Ik(a) => run_ik(a, &label, quiet),
-            Command::Run(_) | Command::Inspect(_) => unreachable!("scene jobs are cloth or ik"),
+            Command::Run(_) | Command::Inspect(_) | Command::Open(_) => {
+                unreachable!("scene jobs are cloth or ik")
+            }
         }
         .with_context(|| {
             format!(
@@ -74,6 +78,10 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                 job.kind
             )
         })?;
+        print_warnings(&Outcome {
+            name: job.name.clone(),
+            ..outcome.clone()
+        });
         if !quiet {
             eprintln!(
                 "[{}/{}] {}",
@@ -85,6 +93,7 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                 })
             );
         }
+        super::interrupt::record_written(outcome.files.iter().map(|(f, _)| f.clone()));
         outcomes.push(Outcome {
             name: job.name.clone(),
             ..outcome
@@ -108,17 +117,42 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
 }
 
 fn table(outcomes: &[Outcome]) -> String {
+    // One row per file written: the job's first row names it, the others (a .bin, VAT images)
+    // only give the file and its own size.
     let rows: Vec<[String; 6]> = outcomes
         .iter()
-        .map(|o| {
-            [
-                o.kind.to_string(),
-                o.name.clone(),
-                o.output.display().to_string(),
-                o.frames.to_string(),
-                format!("{:.2} s", o.seconds),
-                progress::bytes(o.bytes),
-            ]
+        .flat_map(|o| {
+            let files = if o.files.is_empty() {
+                vec![(o.output.clone(), o.bytes)]
+            } else {
+                o.files.clone()
+            };
+            files
+                .into_iter()
+                .enumerate()
+                .map(move |(i, (file, bytes))| {
+                    let first = i == 0;
+                    [
+                        if first {
+                            o.kind.to_string()
+                        } else {
+                            String::new()
+                        },
+                        if first { o.name.clone() } else { String::new() },
+                        file.display().to_string(),
+                        if first {
+                            o.frames.to_string()
+                        } else {
+                            String::new()
+                        },
+                        if first {
+                            format!("{:.2} s", o.seconds)
+                        } else {
+                            String::new()
+                        },
+                        progress::bytes(bytes),
+                    ]
+                })
         })
         .collect();
     let header = ["job", "name", "output", "frames", "time", "size"].map(String::from);
@@ -153,8 +187,11 @@ fn load_scene(path: &Path) -> anyhow::Result<Vec<SceneJob>> {
     let mut jobs = Vec::new();
     for (kind, value) in &doc {
         if !KINDS.contains(&kind.as_str()) {
+            let hint = did_you_mean(kind, KINDS.iter().copied())
+                .map(|k| format!("did you mean [[{k}]]? "))
+                .unwrap_or_default();
             bail!(
-                "{}: unknown table `{kind}` (jobs are [[{}]])",
+                "{}: unknown table `{kind}` ({hint}jobs are [[{}]])",
                 path.display(),
                 KINDS.join("]], [[")
             );
@@ -187,6 +224,12 @@ fn load_scene(path: &Path) -> anyhow::Result<Vec<SceneJob>> {
                 command: cli.command,
             });
         }
+    }
+    if jobs.is_empty() {
+        bail!(
+            "{}: no jobs: a scene lists [[cloth]] and [[ik]] tables (see scenes/demo.toml)",
+            path.display()
+        );
     }
     let mut names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
     names.sort_unstable();
@@ -227,7 +270,10 @@ fn job_arguments(kind: &str, table: &toml::Table, dir: &Path) -> anyhow::Result<
                     .filter(|k| k != "help" && k != "version" && k != "quiet")
                     .collect();
                 known.sort();
-                anyhow!("unknown key `{raw_key}` (keys: {})", known.join(", "))
+                let hint = did_you_mean(&key, known.iter().map(String::as_str))
+                    .map(|k| format!("did you mean `{k}`? "))
+                    .unwrap_or_default();
+                anyhow!("unknown key `{raw_key}` ({hint}keys: {})", known.join(", "))
             })?;
         let takes_value = arg.get_num_args().map_or(true, |n| n.takes_values());
         let values: Vec<&toml::Value> = match value {
@@ -295,6 +341,33 @@ fn lexically_normal(path: &Path) -> PathBuf {
         out.push(".");
     }
     out
+}
+
+/// The known word closest to `word` (edit distance at most 2, or a third of its length), if
+/// any: the likely intended spelling of a typo.
+fn did_you_mean<'a>(word: &str, known: impl Iterator<Item = &'a str>) -> Option<&'a str> {
+    let limit = (word.chars().count() / 3).max(2);
+    known
+        .map(|k| (edit_distance(word, k), k))
+        .filter(|&(d, _)| d <= limit)
+        .min_by_key(|&(d, _)| d)
+        .map(|(_, k)| k)
+}
+
+/// Levenshtein distance between two strings, in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != cb)).min(row[j] + 1).min(cur + 1);
+            prev = cur;
+        }
+    }
+    row[b.len()]
 }
 
 /// clap's message without its `error:` prefix and usage footer, on one line.

@@ -25,7 +25,7 @@ use sprs::CsMat;
 use super::collide::contact::{self, Hold};
 use super::collide::{Colliders, SurfacePoint};
 use super::factor::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
-use super::system::ReducedSystem;
+use super::system::{spring_response, FreeBends, ReducedSystem, JAM_STRAIN, PINNED};
 use super::{StepSolver, StepStats};
 use crate::error::Result;
 
@@ -88,10 +88,12 @@ impl GlobalFactor {
     }
 }
 
-/// Local/global solver with a fixed iteration count per step.
+/// Local/global solver: iterates until the residual falls below a tolerance, or a cap.
 #[derive(Debug)]
 pub struct FastSolver {
     sys: ReducedSystem,
+    /// Stop a step when ρ = ‖∇g‖ / force scale ≤ this (0: always run the cap).
+    tolerance: f64,
     factor: GlobalFactor,
     /// Estimated contraction per iteration of the linear correction iteration with `factor`
     /// (0 up to roundoff for an exact factor).
@@ -103,6 +105,12 @@ pub struct FastSolver {
     hkl: Vec<f64>,
     /// h²·k per free spring, kg.
     hk: Vec<f64>,
+    /// kc/k per free spring: the local step's pull scaled for a compressed spring, so that the
+    /// residual is the exact −h²∇g whatever the compression stiffness (1 for the labs' springs).
+    soft: Vec<f64>,
+    /// h²·k·(1 − J)·l per free spring that jams (kc < k, J = [`JAM_STRAIN`]), else 0, kg·m: a
+    /// spring shorter than (1 − J)·l adds h²·k·((1 − J)·l/|d| − 1)·d to its push.
+    jam_hkl: Vec<f64>,
     /// h²·k per anchor, kg.
     hk_anchor: Vec<f64>,
     /// s·m per particle, kg.
@@ -183,6 +191,16 @@ impl FastSolver {
             ends: sp.a.iter().zip(&sp.b).map(|(&a, &b)| [a, b]).collect(),
             hkl: sp.k.iter().zip(&sp.rest).map(|(k, l)| h2 * k * l).collect(),
             hk: sp.k.iter().map(|k| h2 * k).collect(),
+            soft: sp.kc.iter().zip(&sp.k).map(|(kc, k)| kc / k).collect(),
+            jam_hkl: (0..sp.k.len())
+                .map(|i| {
+                    if sp.kc[i] < sp.k[i] {
+                        h2 * sp.k[i] * (1.0 - JAM_STRAIN) * sp.rest[i]
+                    } else {
+                        0.0
+                    }
+                })
+                .collect(),
             hk_anchor: sys.anchors.k.iter().map(|k| h2 * k).collect(),
             sm: sys.mass.iter().map(|m| s * m).collect(),
             pos: vec![Lanes4::default(); n],
@@ -200,8 +218,17 @@ impl FastSolver {
             factor,
             factor_rate,
             iterations,
+            tolerance: 0.0,
             sys,
         }
+    }
+
+    /// Stops each step as soon as ρ = ‖∇g‖ / force scale ≤ `tolerance` (with the iteration
+    /// count given at construction as the cap); steps that end above it report
+    /// `converged: false`. Without this every step runs the cap.
+    pub fn with_tolerance(mut self, tolerance: f64) -> Self {
+        self.tolerance = tolerance;
+        self
     }
 
     /// The upper triangle of the global step's matrix A = s·M + h²·L (kg), solver order.
@@ -222,6 +249,19 @@ impl FastSolver {
         let an = &sys.anchors;
         triplets
             .extend((0..an.a.len()).map(|i| (an.a[i] as usize, an.a[i] as usize, h2 * an.k[i])));
+        // Bending is quadratic: its Hessian h²·Σ w wᵀ is exact and constant.
+        let b = &sys.bends;
+        for (v, w) in b.v.iter().zip(&b.w) {
+            for i in 0..4 {
+                for j in i..4 {
+                    if v[i] != PINNED && v[j] != PINNED {
+                        let (r, c) = (v[i].min(v[j]) as usize, v[i].max(v[j]) as usize);
+                        let value = h2 * w[i] * w[j];
+                        triplets.push((r, c, if i == j || r != c { value } else { 2.0 * value }));
+                    }
+                }
+            }
+        }
         upper_from_triplets(n, &triplets)
     }
 
@@ -281,19 +321,33 @@ impl FastSolver {
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2; `pos` and `res` have the system's length and every
             // spring end is below it (asserted in `with_factor`).
-            done = unsafe { springs_avx2(x, r, &self.ends, &self.hkl, &self.hk) };
+            done = unsafe {
+                springs_avx2(
+                    x,
+                    r,
+                    &self.ends,
+                    &self.hkl,
+                    &self.hk,
+                    &self.soft,
+                    &self.jam_hkl,
+                )
+            };
         }
-        springs_scalar(x, r, &self.ends, &self.hkl, &self.hk, done);
+        let springs = (&self.ends[..], &self.hkl[..], &self.hk[..]);
+        springs_scalar(x, r, springs, &self.soft, &self.jam_hkl, done);
         let an = &self.sys.anchors;
         for i in 0..an.a.len() {
             let a = an.a[i] as usize;
             let d = x[a].xyz() - an.at[i];
             let len = d.length();
             if len > 0.0 {
-                let hk = self.hk_anchor[i];
-                r[a] += Lanes4::from_vec3(d * (hk * an.rest[i] / len - hk));
+                let h2 = self.sys.params.time_step.powi(2);
+                let (f, _) = spring_response(len, an.rest[i], an.k[i], an.kc[i]);
+                r[a] -= Lanes4::from_vec3(d * (h2 * f / len));
             }
         }
+        let h2 = self.sys.params.time_step.powi(2);
+        bend_product(&self.sys.bends, -h2, x, true, r);
     }
 
     /// The first iterate: the inertial target y, except for particles resting on a collider at
@@ -403,6 +457,7 @@ impl FastSolver {
                 &self.hk,
                 &self.sm,
                 (&self.sys.anchors.a, &self.hk_anchor),
+                (&self.sys.bends, self.sys.params.time_step.powi(2)),
                 p,
                 z,
             );
@@ -481,13 +536,15 @@ fn solve_single(
 }
 
 /// The springs' part of [`FastSolver::residual_step`] from spring `first` on: h²k·(l/|d| − 1)·d
-/// added to end a and subtracted from end b (d = xa − xb; coincident ends pull nothing).
+/// added to end a and subtracted from end b (d = xa − xb; coincident ends pull nothing), scaled
+/// by `soft` = kc/k where the spring is compressed (l/|d| > 1), plus the jammed push
+/// max(0, jam_hkl/|d| − h²k)·d.
 fn springs_scalar(
     x: &[Lanes4],
     r: &mut [Lanes4],
-    ends: &[[u32; 2]],
-    hkl: &[f64],
-    hk: &[f64],
+    (ends, hkl, hk): (&[[u32; 2]], &[f64], &[f64]),
+    soft: &[f64],
+    jam_hkl: &[f64],
     first: usize,
 ) {
     for i in first..ends.len() {
@@ -496,7 +553,12 @@ fn springs_scalar(
         let d = x[a] - x[b];
         let len2 = d.0[0] * d.0[0] + d.0[1] * d.0[1] + d.0[2] * d.0[2];
         if len2 > 0.0 {
-            let f = d * (hkl[i] / len2.sqrt() - hk[i]);
+            let len = len2.sqrt();
+            let mut c = hkl[i] / len - hk[i];
+            if c > 0.0 {
+                c = c * soft[i] + (jam_hkl[i] / len - hk[i]).max(0.0);
+            }
+            let f = d * c;
             r[a] += f;
             r[b] -= f;
         }
@@ -519,10 +581,18 @@ unsafe fn springs_avx2(
     ends: &[[u32; 2]],
     hkl: &[f64],
     hk: &[f64],
+    soft: &[f64],
+    jam_hkl: &[f64],
 ) -> usize {
     use std::arch::x86_64::*;
     let quads = ends.len() / 4;
-    let (ends, hkl, hk) = (&ends[..4 * quads], &hkl[..4 * quads], &hk[..4 * quads]);
+    let (ends, hkl, hk, soft, jam_hkl) = (
+        &ends[..4 * quads],
+        &hkl[..4 * quads],
+        &hk[..4 * quads],
+        &soft[..4 * quads],
+        &jam_hkl[..4 * quads],
+    );
     debug_assert!(x.len() == r.len());
     debug_assert!(ends.iter().flatten().all(|&i| (i as usize) < x.len()));
     let (xp, rp) = (x.as_ptr() as *const f64, r.as_mut_ptr() as *mut f64);
@@ -541,12 +611,29 @@ unsafe fn springs_avx2(
             let lo = _mm256_blend_pd(t01, t23, 0b1100);
             let hi = _mm256_permute2f128_pd(t01, t23, 0x21);
             let len2 = _mm256_add_pd(lo, hi);
+            let len = _mm256_sqrt_pd(len2);
+            let hkq = _mm256_loadu_pd(hk.as_ptr().add(4 * q));
             let c = _mm256_sub_pd(
-                _mm256_div_pd(
-                    _mm256_loadu_pd(hkl.as_ptr().add(4 * q)),
-                    _mm256_sqrt_pd(len2),
+                _mm256_div_pd(_mm256_loadu_pd(hkl.as_ptr().add(4 * q)), len),
+                hkq,
+            );
+            // Compressed springs (c > 0) push with kc instead of k, c·(kc/k), plus the jammed
+            // push max(0, jam_hkl/|d| − h²k).
+            let compressed = _mm256_cmp_pd(c, _mm256_setzero_pd(), _CMP_GT_OQ);
+            let jam = _mm256_max_pd(
+                _mm256_sub_pd(
+                    _mm256_div_pd(_mm256_loadu_pd(jam_hkl.as_ptr().add(4 * q)), len),
+                    hkq,
                 ),
-                _mm256_loadu_pd(hk.as_ptr().add(4 * q)),
+                _mm256_setzero_pd(),
+            );
+            let c = _mm256_blendv_pd(
+                c,
+                _mm256_add_pd(
+                    _mm256_mul_pd(c, _mm256_loadu_pd(soft.as_ptr().add(4 * q))),
+                    jam,
+                ),
+                compressed,
             );
             // Coincident ends pull nothing (and l/0 is discarded).
             let c = _mm256_and_pd(c, _mm256_cmp_pd(len2, _mm256_setzero_pd(), _CMP_GT_OQ));
@@ -567,6 +654,10 @@ unsafe fn springs_avx2(
     4 * quads
 }
 
+/// Local/global iterations a step with colliders takes at least, whatever its residual: the
+/// particles pushed out of colliders and the friction holds are only settled after several.
+pub const MIN_CONTACT_ITERATIONS: usize = 10;
+
 /// Conjugate-gradient iterations of a held global step at most.
 const CG_ITERATIONS: usize = 10;
 
@@ -583,11 +674,13 @@ fn dot(a: &[Lanes4], b: &[Lanes4]) -> f64 {
 
 /// out = A·p with A = s·M + h²·L: `sm` on the diagonal, h²k (`hk`) per spring between its
 /// `ends`, and h²k per anchor on its free end.
+#[allow(clippy::too_many_arguments)]
 fn apply_matrix(
     ends: &[[u32; 2]],
     hk: &[f64],
     sm: &[f64],
     (anchors, hk_anchor): (&[u32], &[f64]),
+    (bends, h2): (&FreeBends, f64),
     p: &[Lanes4],
     out: &mut [Lanes4],
 ) {
@@ -602,6 +695,27 @@ fn apply_matrix(
     }
     for (&a, &hk) in anchors.iter().zip(hk_anchor) {
         out[a as usize] += p[a as usize] * hk;
+    }
+    bend_product(bends, h2, p, false, out);
+}
+
+/// out += c·wᵢ·(Σⱼ wⱼ pⱼ [+ fixed]) for every free vertex i of every bending stencil: with
+/// `c = h²` and no fixed part the bending block of h²·A·p, with `c = −h²` and the fixed part the
+/// bending forces' share of the residual.
+fn bend_product(bends: &FreeBends, c: f64, p: &[Lanes4], fixed: bool, out: &mut [Lanes4]) {
+    for s in 0..bends.len() {
+        let (v, w) = (&bends.v[s], &bends.w[s]);
+        let mut sum = if fixed { bends.fixed[s] } else { DVec3::ZERO };
+        for i in 0..4 {
+            if v[i] != PINNED {
+                sum += p[v[i] as usize].xyz() * w[i];
+            }
+        }
+        for i in 0..4 {
+            if v[i] != PINNED {
+                out[v[i] as usize] += Lanes4::from_vec3(sum * (c * w[i]));
+            }
+        }
     }
 }
 
@@ -712,17 +826,27 @@ impl StepSolver for FastSolver {
         if let Some(h) = &mut self.history {
             h.clear();
         }
+        let mut iterations = 0;
         for k in 0..self.iterations {
             self.residual_step();
             self.contact_reactions();
-            if k > 0 && self.history.is_some() {
+            if self.tolerance > 0.0 || (k > 0 && self.history.is_some()) {
                 let r = self.relative_residual();
-                if let Some(h) = &mut self.history {
-                    h.push(r);
+                if k > 0 {
+                    if let Some(h) = &mut self.history {
+                        h.push(r);
+                    }
+                }
+                // With colliders the contact set and the friction holds settle over the
+                // iterations too: never stop before MIN_CONTACT_ITERATIONS.
+                let settled = self.colliders.is_none() || k >= MIN_CONTACT_ITERATIONS;
+                if r <= self.tolerance && settled {
+                    break;
                 }
             }
             self.global_step();
             self.push_out();
+            iterations += 1;
         }
         // One more residual measures how far the last iterate is from stationary.
         self.residual_step();
@@ -731,6 +855,12 @@ impl StepSolver for FastSolver {
         if let Some(h) = &mut self.history {
             h.push(residual);
         }
+        if !residual.is_finite() {
+            return Err(crate::error::Error::Diverged {
+                frame: 0,
+                reason: "non-finite residual in the local/global iteration".into(),
+            });
+        }
         for (x, p) in x.iter_mut().zip(&self.pos) {
             *x = p.xyz();
         }
@@ -738,9 +868,9 @@ impl StepSolver for FastSolver {
             *v = (*x - *x0) / h;
         }
         Ok(StepStats {
-            iterations: self.iterations,
+            iterations,
             residual,
-            converged: true,
+            converged: residual <= self.tolerance || self.tolerance == 0.0,
             contacts,
         })
     }
@@ -929,13 +1059,19 @@ mod tests {
         ends.push([7, 9]);
         let hkl: Vec<f64> = (0..ends.len()).map(|i| 0.1 + 0.01 * i as f64).collect();
         let hk: Vec<f64> = (0..ends.len()).map(|i| 0.3 + 0.02 * i as f64).collect();
+        // Compression stiffness ratios from 0 to 1 (both branches of the blend are taken).
+        let soft: Vec<f64> = (0..ends.len()).map(|i| (i % 5) as f64 / 4.0).collect();
+        let jam: Vec<f64> = (0..ends.len())
+            .map(|i| hkl[i] * (i % 3) as f64 * 0.4)
+            .collect();
         let mut want = vec![Lanes4::from_vec3(DVec3::new(0.5, -0.25, 1.0)); n];
         let mut got = want.clone();
-        springs_scalar(&x, &mut want, &ends, &hkl, &hk, 0);
+        let springs = (&ends[..], &hkl[..], &hk[..]);
+        springs_scalar(&x, &mut want, springs, &soft, &jam, 0);
         // SAFETY: AVX2 detected; every end is below n.
-        let done = unsafe { springs_avx2(&x, &mut got, &ends, &hkl, &hk) };
+        let done = unsafe { springs_avx2(&x, &mut got, &ends, &hkl, &hk, &soft, &jam) };
         assert_eq!(done, ends.len() / 4 * 4);
-        springs_scalar(&x, &mut got, &ends, &hkl, &hk, done);
+        springs_scalar(&x, &mut got, springs, &soft, &jam, done);
         assert_eq!(got, want);
     }
 

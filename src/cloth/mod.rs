@@ -7,6 +7,7 @@
 pub mod collide;
 pub mod factor;
 pub mod fast;
+pub mod material;
 pub mod model;
 pub mod newton;
 pub mod pins;
@@ -36,7 +37,7 @@ pub struct StepStats {
     pub iterations: usize,
     /// Final ‖∇g‖ relative to the free particles' weight (dimensionless).
     pub residual: f64,
-    /// False when an iterative solver stopped at its cap before its tolerance.
+    /// False when the step ended above the solver's tolerance (it stopped at its cap).
     pub converged: bool,
     /// Particles touching a collider at the end of the step (the most over a frame's substeps).
     pub contacts: usize,
@@ -80,10 +81,10 @@ pub struct BakeParams {
     pub gravity: DVec3,
     /// The solver.
     pub solver: SolverKind,
-    /// Local/global iterations per step (fast solver).
+    /// Local/global iterations per step at most (fast solver).
     pub iterations: usize,
-    /// Newton stops when ‖∇g‖ / force scale falls below this (dimensionless; default
-    /// [`newton::DEFAULT_TOLERANCE`] = 1e-8).
+    /// Every solver stops a step when ρ = ‖∇g‖ / force scale falls below this (dimensionless;
+    /// see [`ReducedSystem::force_scale`]); a step that ends above it is reported unconverged.
     pub tolerance: f64,
     /// Newton iterations per step at most (default [`newton::DEFAULT_MAX_ITERATIONS`] = 50).
     pub max_newton: usize,
@@ -178,9 +179,11 @@ pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn St
     let sys = ReducedSystem::new(model, params.step_params())?;
     let colliders = (!params.colliders.is_empty()).then(|| params.colliders.clone());
     Ok(match params.solver {
-        SolverKind::Fast => {
-            Box::new(FastSolver::new(sys, params.iterations)?.with_colliders(colliders))
-        }
+        SolverKind::Fast => Box::new(
+            FastSolver::new(sys, params.iterations)?
+                .with_tolerance(params.tolerance)
+                .with_colliders(colliders),
+        ),
         SolverKind::Newton => Box::new(
             NewtonSolver::new(sys, params.tolerance, params.max_newton)?.with_colliders(colliders),
         ),

@@ -2,6 +2,7 @@
 
 use glam::DVec3;
 
+use super::material::BendStencil;
 use super::springs::{Spring, SpringSet};
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -15,6 +16,8 @@ pub struct ClothModel {
     pub mesh: Mesh,
     /// The springs.
     pub springs: Vec<Spring>,
+    /// Quadratic bending stencils (material models; the labs' models bend with springs).
+    pub bending: Vec<BendStencil>,
     /// Mass of each particle in kg.
     pub mass: Vec<f64>,
     /// Whether each particle is held at its initial position.
@@ -49,6 +52,7 @@ impl ClothModel {
                 || s.b as usize >= n
                 || s.a == s.b
                 || !(s.stiffness.is_finite() && s.stiffness > 0.0)
+                || !(s.compression.is_finite() && s.compression >= 0.0)
                 || s.rest.is_nan()
                 || s.rest <= 0.0
         }) {
@@ -66,11 +70,31 @@ impl ClothModel {
         }
         Ok(ClothModel {
             springs: springs.springs,
+            bending: Vec::new(),
             mass,
             pinned,
             warnings,
             mesh,
         })
+    }
+
+    /// Adds quadratic bending stencils (see [`super::material`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] when a stencil names a particle out of range or has a non-finite
+    /// weight.
+    pub fn with_bending(mut self, bending: Vec<BendStencil>) -> Result<Self> {
+        let n = self.particle_count();
+        if let Some(s) = bending.iter().find(|s| {
+            s.vertices.iter().any(|&v| v as usize >= n) || s.weights.iter().any(|w| !w.is_finite())
+        }) {
+            return Err(Error::invalid(
+                &self.mesh.name,
+                format!("invalid bending stencil {s:?}"),
+            ));
+        }
+        self.bending = bending;
+        Ok(self)
     }
 
     /// Number of particles.

@@ -43,7 +43,7 @@ use glam::DVec3;
 
 use super::collide::contact::Penalty;
 use super::collide::Colliders;
-use super::system::ReducedSystem;
+use super::system::{ReducedSystem, PINNED};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
 
@@ -65,6 +65,15 @@ const MAX_HALVINGS: usize = 30;
 /// Relative roundoff allowance when comparing objective values (g is a sum of non-negative
 /// terms, so its own size bounds the roundoff of its evaluation).
 const ROUNDOFF: f64 = 1e-12;
+
+/// The numeric factorisation's parallelism: rayon's pool (every core; the supernodes' dense
+/// updates split between threads).
+fn factor_par() -> Par {
+    Par::rayon(0)
+}
+
+/// The vertex pairs of a bending stencil, in the order of [`NewtonSolver`]'s `bend_off`.
+const BEND_PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
 
 /// Where a 3×3 symmetric block's upper entries live in the value array: `col[c] + r` holds entry
 /// (r, c) for r ≤ c (diagonal blocks) or for every r (off-diagonal blocks).
@@ -95,6 +104,9 @@ pub struct NewtonSolver {
     diag: Vec<BlockCols>,
     /// Per free spring: its off-diagonal block's columns (rows of the lower-indexed end).
     off: Vec<BlockCols>,
+    /// Per bending stencil and vertex pair (0,1), (0,2), (0,3), (1,2), (1,3), (2,3): the pair's
+    /// off-diagonal block, `None` where either vertex is pinned or both are the same particle.
+    bend_off: Vec<[Option<BlockCols>; 6]>,
     symbolic: SymbolicCholesky<usize>,
     l_values: Vec<f64>,
     /// Scratch for numeric factorisation and solves.
@@ -111,6 +123,8 @@ pub struct NewtonSolver {
     steps: usize,
     /// Contact and friction terms, when there are colliders.
     penalty: Option<Penalty>,
+    /// Numeric factorisations done since construction (for reports and benchmarks).
+    factorisations: usize,
 }
 
 impl NewtonSolver {
@@ -126,20 +140,27 @@ impl NewtonSolver {
         let n = sys.len();
         let sp = &sys.springs;
         // Lower-indexed neighbours of each particle, sorted and unique (CSR by higher end).
+        let pairs: Vec<(u32, u32)> =
+            sp.a.iter()
+                .zip(&sp.b)
+                .map(|(&a, &b)| (a, b))
+                .chain(sys.bends.pairs().map(|(a, b)| (a as u32, b as u32)))
+                .collect();
         let mut start = vec![0u32; n + 1];
-        for (&a, &b) in sp.a.iter().zip(&sp.b) {
+        for &(a, b) in &pairs {
             start[a.max(b) as usize + 1] += 1;
         }
         for i in 0..n {
             start[i + 1] += start[i];
         }
         let mut fill = start.clone();
-        let mut lower = vec![0u32; sp.a.len()];
-        for (&a, &b) in sp.a.iter().zip(&sp.b) {
+        let mut lower = vec![0u32; pairs.len()];
+        for &(a, b) in &pairs {
             let hi = a.max(b) as usize;
             lower[fill[hi] as usize] = a.min(b);
             fill[hi] += 1;
         }
+        drop(pairs);
         let mut neighbours: Vec<Vec<u32>> = Vec::with_capacity(n);
         for i in 0..n {
             let mut list = lower[start[i] as usize..start[i + 1] as usize].to_vec();
@@ -169,16 +190,35 @@ impl NewtonSolver {
             }
             diag.push(d);
         }
-        let mut off = Vec::with_capacity(sp.a.len());
-        for (&a, &b) in sp.a.iter().zip(&sp.b) {
+        let block = |a: u32, b: u32| -> Result<BlockCols> {
             let (lo, hi) = (a.min(b), a.max(b) as usize);
             let p = neighbours[hi].binary_search(&lo).expect("neighbour listed");
             let mut o = [0u32; 3];
             for (c, oc) in o.iter_mut().enumerate() {
                 *oc = index32(col_first[3 * hi + c] + 3 * p)?;
             }
-            off.push(o);
-        }
+            Ok(o)
+        };
+        let off =
+            sp.a.iter()
+                .zip(&sp.b)
+                .map(|(&a, &b)| block(a, b))
+                .collect::<Result<Vec<_>>>()?;
+        let bend_off = sys
+            .bends
+            .v
+            .iter()
+            .map(|v| {
+                let mut out = [None; 6];
+                for (slot, (i, j)) in BEND_PAIRS.iter().enumerate() {
+                    let (a, b) = (v[*i], v[*j]);
+                    if a != PINNED && b != PINNED && a != b {
+                        out[slot] = Some(block(a, b)?);
+                    }
+                }
+                Ok(out)
+            })
+            .collect::<Result<Vec<_>>>()?;
         drop(neighbours);
 
         let pattern = SymbolicSparseColMatRef::new_checked(dim, dim, &col_ptr, None, &row_idx);
@@ -189,7 +229,7 @@ impl NewtonSolver {
             CholeskySymbolicParams::default(),
         )
         .map_err(|e| Error::Factorisation(format!("symbolic analysis: {e:?}")))?;
-        let par = Par::Seq;
+        let par = factor_par();
         let scratch = Scratch(MemBuffer::new(StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
             symbolic.solve_in_place_scratch::<f64>(1, par),
@@ -203,6 +243,7 @@ impl NewtonSolver {
             row_idx,
             diag,
             off,
+            bend_off,
             grad: vec![DVec3::ZERO; n],
             dx: vec![0.0; dim],
             trial: vec![DVec3::ZERO; n],
@@ -211,6 +252,7 @@ impl NewtonSolver {
             history: None,
             steps: 0,
             penalty: None,
+            factorisations: 0,
             tolerance,
             max_iterations,
             sys,
@@ -237,6 +279,11 @@ impl NewtonSolver {
     /// Relative residuals ‖∇g‖/force scale at each iterate of the last step, first to last.
     pub fn history(&self) -> Option<&[f64]> {
         self.history.as_deref()
+    }
+
+    /// Numeric factorisations done so far.
+    pub fn factorisations(&self) -> usize {
+        self.factorisations
     }
 
     /// Stored entries of the Hessian's upper triangle.
@@ -303,7 +350,7 @@ impl NewtonSolver {
         let sp = &self.sys.springs;
         for (s, off) in self.off.iter().enumerate() {
             let (a, b) = (sp.a[s] as usize, sp.b[s] as usize);
-            let (f, he) = spring_terms(x[a] - x[b], sp.rest[s], sp.k[s]);
+            let (f, he) = spring_terms(x[a] - x[b], sp.rest[s], sp.k[s], sp.kc[s]);
             grad[a] += f;
             grad[b] -= f;
             add_diag(values, &self.diag[a], &he);
@@ -319,9 +366,36 @@ impl NewtonSolver {
         let an = &self.sys.anchors;
         for i in 0..an.a.len() {
             let a = an.a[i] as usize;
-            let (f, he) = spring_terms(x[a] - an.at[i], an.rest[i], an.k[i]);
+            let (f, he) = spring_terms(x[a] - an.at[i], an.rest[i], an.k[i], an.kc[i]);
             grad[a] += f;
             add_diag(values, &self.diag[a], &he);
+        }
+        // Bending is quadratic: gradient wᵢ·(Σ wⱼxⱼ + fixed), Hessian blocks wᵢwⱼ·I.
+        let bends = &self.sys.bends;
+        for (s, pairs) in self.bend_off.iter().enumerate() {
+            let (v, w) = (&bends.v[s], &bends.w[s]);
+            let value = bends.value(s, x);
+            for i in 0..4 {
+                if v[i] != PINNED {
+                    grad[v[i] as usize] += value * w[i];
+                    let d = &self.diag[v[i] as usize];
+                    for c in 0..3 {
+                        values[d[c] as usize + c] += w[i] * w[i];
+                    }
+                }
+            }
+            for (slot, &(i, j)) in BEND_PAIRS.iter().enumerate() {
+                if let Some(o) = pairs[slot] {
+                    for c in 0..3 {
+                        values[o[c] as usize + c] += w[i] * w[j];
+                    }
+                } else if v[i] != PINNED && v[i] == v[j] {
+                    let d = &self.diag[v[i] as usize];
+                    for c in 0..3 {
+                        values[d[c] as usize + c] += 2.0 * w[i] * w[j];
+                    }
+                }
+            }
         }
         if let Some(penalty) = &self.penalty {
             let diag = &self.diag;
@@ -330,6 +404,7 @@ impl NewtonSolver {
     }
 
     fn factorize(&mut self) -> Result<()> {
+        self.factorisations += 1;
         let dim = self.dx.len();
         let pattern =
             SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx);
@@ -340,7 +415,7 @@ impl NewtonSolver {
                 a,
                 Side::Upper,
                 Default::default(),
-                Par::Seq,
+                factor_par(),
                 MemStack::new(&mut self.scratch.0),
                 Default::default(),
             )
@@ -372,20 +447,23 @@ impl NewtonSolver {
     }
 }
 
-/// The gradient k(|r| − l) u and the clamped Hessian block of one spring, as rows.
+/// The gradient f·u and the projected Hessian block of one spring, as rows: df/d|r| along u
+/// and f/|r| across it, the latter clamped at zero for a compressed spring (whose exact
+/// transverse term is negative), so every block is positive semi-definite.
 #[inline(always)]
-fn spring_terms(r: DVec3, rest: f64, k: f64) -> (DVec3, [[f64; 3]; 3]) {
+fn spring_terms(r: DVec3, rest: f64, k: f64, kc: f64) -> (DVec3, [[f64; 3]; 3]) {
     let len = r.length();
     if len > 0.0 {
+        let (f, along) = super::system::spring_response(len, rest, k, kc);
         let u = r / len;
-        let beta = (1.0 - rest / len).max(0.0);
-        let (t, p) = (k * beta, k * (1.0 - beta));
+        let t = (f / len).max(0.0);
+        let p = along - t;
         let he = [
             [t + p * u.x * u.x, p * u.x * u.y, p * u.x * u.z],
             [p * u.y * u.x, t + p * u.y * u.y, p * u.y * u.z],
             [p * u.z * u.x, p * u.z * u.y, t + p * u.z * u.z],
         ];
-        (u * (k * (len - rest)), he)
+        (u * f, he)
     } else {
         // Coincident ends: no force and no defined direction; the inertia keeps H definite.
         (DVec3::ZERO, [[0.0; 3]; 3])
@@ -420,7 +498,16 @@ impl StepSolver for NewtonSolver {
             p.begin_step(x);
         }
         self.sys.predict(x, v, &mut self.y);
-        x.copy_from_slice(&self.y);
+        // Start from y, or from x₀ + h·v₀ (no gravity: near pins, y stretches the springs by
+        // h²g), whichever has the lower objective.
+        for ((t, x0), v) in self.trial.iter_mut().zip(&self.x0).zip(v.iter()) {
+            *t = *x0 + *v * h;
+        }
+        if self.energy(&self.trial) < self.energy(&self.y) {
+            x.copy_from_slice(&self.trial);
+        } else {
+            x.copy_from_slice(&self.y);
+        }
         if let Some(hist) = &mut self.history {
             hist.clear();
         }

@@ -18,7 +18,11 @@ pub enum SpringKind {
     Bend,
 }
 
-/// A linear spring between two particles, energy ½·k·(|xa − xb| − rest)².
+/// A spring between two particles with energy ½·k·(|xa − xb| − rest)², where k is `stiffness`
+/// when the spring is stretched (|xa − xb| ≥ rest) and `compression` when it is shorter than its
+/// rest length. The labs' springs are symmetric (`compression == stiffness`); fabric hardly
+/// resists compression (it buckles instead), which the material model expresses with a small
+/// `compression` (see [`super::material`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Spring {
     /// First particle.
@@ -27,8 +31,10 @@ pub struct Spring {
     pub b: u32,
     /// Rest length in metres (positive).
     pub rest: f64,
-    /// Stiffness in N/m.
+    /// Stiffness in tension, N/m.
     pub stiffness: f64,
+    /// Stiffness in compression, N/m (non-negative).
+    pub compression: f64,
     /// What the spring models.
     pub kind: SpringKind,
 }
@@ -51,6 +57,7 @@ impl SpringSet {
                 b,
                 rest,
                 stiffness,
+                compression: stiffness,
                 kind,
             });
         } else {

@@ -40,8 +40,10 @@ pub struct FreeSprings {
     pub b: Vec<u32>,
     /// Rest length, m.
     pub rest: Vec<f64>,
-    /// Stiffness, N/m.
+    /// Stiffness in tension, N/m.
     pub k: Vec<f64>,
+    /// Stiffness in compression, N/m.
+    pub kc: Vec<f64>,
 }
 
 /// Springs from a free particle to a pinned (fixed) point.
@@ -53,8 +55,58 @@ pub struct Anchors {
     pub at: Vec<DVec3>,
     /// Rest length, m.
     pub rest: Vec<f64>,
-    /// Stiffness, N/m.
+    /// Stiffness in tension, N/m.
     pub k: Vec<f64>,
+    /// Stiffness in compression, N/m.
+    pub kc: Vec<f64>,
+}
+
+/// Quadratic bending stencils on the free particles (see [`super::material`]): energy
+/// ½·|Σᵢ wᵢ xᵢ + fixed|² each, pinned vertices folded into `fixed`.
+#[derive(Debug, Clone, Default)]
+pub struct FreeBends {
+    /// Solver index of each vertex, [`PINNED`] where it is pinned (its weight is then zero).
+    pub v: Vec<[u32; 4]>,
+    /// Weights, √(N/m).
+    pub w: Vec<[f64; 4]>,
+    /// Σ wᵢ xᵢ over the pinned vertices.
+    pub fixed: Vec<DVec3>,
+}
+
+/// The solver index [`FreeBends`] gives a pinned vertex.
+pub const PINNED: u32 = u32::MAX;
+
+impl FreeBends {
+    /// Number of stencils.
+    pub fn len(&self) -> usize {
+        self.v.len()
+    }
+
+    /// True when there are none.
+    pub fn is_empty(&self) -> bool {
+        self.v.is_empty()
+    }
+
+    /// Σ wᵢ xᵢ + fixed of stencil `s` at `x`.
+    #[inline]
+    pub fn value(&self, s: usize, x: &[DVec3]) -> DVec3 {
+        let mut sum = self.fixed[s];
+        for (&v, &w) in self.v[s].iter().zip(&self.w[s]) {
+            if v != PINNED {
+                sum += x[v as usize] * w;
+            }
+        }
+        sum
+    }
+
+    /// The free pairs (i, j), i ≠ j, that stencils couple.
+    pub fn pairs(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.v
+            .iter()
+            .flat_map(|v| (0..4).flat_map(move |i| (i + 1..4).map(move |j| (v[i], v[j]))))
+            .filter(|&(a, b)| a != PINNED && b != PINNED && a != b)
+            .map(|(a, b)| (a as usize, b as usize))
+    }
 }
 
 /// The reduced system: free particles only, in solver order.
@@ -70,6 +122,8 @@ pub struct ReducedSystem {
     pub springs: FreeSprings,
     /// Springs from free particles to pins.
     pub anchors: Anchors,
+    /// Quadratic bending stencils.
+    pub bends: FreeBends,
 }
 
 impl ReducedSystem {
@@ -86,9 +140,14 @@ impl ReducedSystem {
         for (s, &p) in free.iter().enumerate() {
             solver_of[p as usize] = s as u32;
         }
-        let pairs = model.springs.iter().filter_map(|s| {
-            let (a, b) = (solver_of[s.a as usize], solver_of[s.b as usize]);
-            (a != u32::MAX && b != u32::MAX).then_some((a as usize, b as usize))
+        let spring_pairs = model.springs.iter().map(|s| (s.a, s.b));
+        let bend_pairs = model.bending.iter().flat_map(|s| {
+            let v = s.vertices;
+            (0..4).flat_map(move |i| (i + 1..4).map(move |j| (v[i], v[j])))
+        });
+        let pairs = spring_pairs.chain(bend_pairs).filter_map(|(a, b)| {
+            let (a, b) = (solver_of[a as usize], solver_of[b as usize]);
+            (a != u32::MAX && b != u32::MAX && a != b).then_some((a as usize, b as usize))
         });
         let order = fill_reducing_order(free.len(), pairs)?;
         let particle_of: Vec<u32> = order.iter().map(|&o| free[o as usize]).collect();
@@ -109,6 +168,7 @@ impl ReducedSystem {
                     springs.b.push(b);
                     springs.rest.push(s.rest);
                     springs.k.push(s.stiffness);
+                    springs.kc.push(s.compression);
                 }
                 (true, false) | (false, true) => {
                     let (free_end, pinned_end) = if a != u32::MAX { (a, s.b) } else { (b, s.a) };
@@ -116,8 +176,29 @@ impl ReducedSystem {
                     anchors.at.push(model.mesh.positions[pinned_end as usize]);
                     anchors.rest.push(s.rest);
                     anchors.k.push(s.stiffness);
+                    anchors.kc.push(s.compression);
                 }
                 (false, false) => {}
+            }
+        }
+        let mut bends = FreeBends::default();
+        for st in &model.bending {
+            let mut v = [PINNED; 4];
+            let mut w = [0.0; 4];
+            let mut fixed = DVec3::ZERO;
+            for i in 0..4 {
+                let p = st.vertices[i] as usize;
+                if solver_of[p] == u32::MAX {
+                    fixed += model.mesh.positions[p] * st.weights[i];
+                } else {
+                    v[i] = solver_of[p];
+                    w[i] = st.weights[i];
+                }
+            }
+            if v.iter().any(|&i| i != PINNED) {
+                bends.v.push(v);
+                bends.w.push(w);
+                bends.fixed.push(fixed);
             }
         }
         let mass = particle_of
@@ -130,6 +211,7 @@ impl ReducedSystem {
             mass,
             springs,
             anchors,
+            bends,
         })
     }
 
@@ -186,14 +268,22 @@ impl ReducedSystem {
         let s = &self.springs;
         let spring: f64 = (0..s.a.len())
             .map(|i| {
-                0.5 * s.k[i] * (x[s.a[i] as usize].distance(x[s.b[i] as usize]) - s.rest[i]).powi(2)
+                let len = x[s.a[i] as usize].distance(x[s.b[i] as usize]);
+                spring_energy(len, s.rest[i], s.k[i], s.kc[i])
             })
             .sum();
         let an = &self.anchors;
         let anchor: f64 = (0..an.a.len())
-            .map(|i| 0.5 * an.k[i] * (x[an.a[i] as usize].distance(an.at[i]) - an.rest[i]).powi(2))
+            .map(|i| {
+                let len = x[an.a[i] as usize].distance(an.at[i]);
+                spring_energy(len, an.rest[i], an.k[i], an.kc[i])
+            })
             .sum();
-        inertia + spring + anchor
+        let b = &self.bends;
+        let bend: f64 = (0..b.len())
+            .map(|s| 0.5 * b.value(s, x).length_squared())
+            .sum();
+        inertia + spring + anchor + bend
     }
 
     /// The gradient ∇g(x) (newtons), written into `grad`.
@@ -206,14 +296,28 @@ impl ReducedSystem {
         let s = &self.springs;
         for i in 0..s.a.len() {
             let (a, b) = (s.a[i] as usize, s.b[i] as usize);
-            let f = spring_gradient(x[a] - x[b], s.rest[i], s.k[i]);
+            let f = spring_gradient(x[a] - x[b], s.rest[i], s.k[i], s.kc[i]);
             grad[a] += f;
             grad[b] -= f;
         }
         let an = &self.anchors;
         for i in 0..an.a.len() {
             let a = an.a[i] as usize;
-            grad[a] += spring_gradient(x[a] - an.at[i], an.rest[i], an.k[i]);
+            grad[a] += spring_gradient(x[a] - an.at[i], an.rest[i], an.k[i], an.kc[i]);
+        }
+        self.add_bending_gradient(x, grad);
+    }
+
+    /// Adds the bending stencils' gradient wᵢ·(Σ wⱼ xⱼ + fixed) to `grad` (N).
+    pub fn add_bending_gradient(&self, x: &[DVec3], grad: &mut [DVec3]) {
+        let b = &self.bends;
+        for s in 0..b.len() {
+            let value = b.value(s, x);
+            for (&v, &w) in b.v[s].iter().zip(&b.w[s]) {
+                if v != PINNED {
+                    grad[v as usize] += value * w;
+                }
+            }
         }
     }
 
@@ -226,12 +330,50 @@ impl ReducedSystem {
     }
 }
 
-/// ∂/∂xa of ½k(|r| − l)² with r = xa − xb: k(|r| − l) r/|r| (zero for coincident ends).
+/// Compression strain at which a spring that is softer in compression than in tension (a
+/// fabric's, see [`super::material`]) jams: beyond it the tension stiffness adds back, as yarns
+/// pressed together do. Springs with equal stiffnesses (the labs') never jam.
+pub const JAM_STRAIN: f64 = 0.1;
+
+/// A spring's tension f (N, positive when stretched) and its derivative df/d|r| (N/m) at length
+/// `len`: f = k·e for an extension e = len − rest ≥ 0, and kc·e in compression, plus k·(e + J·rest)
+/// past the jamming strain J = [`JAM_STRAIN`] when kc < k.
+#[inline(always)]
+pub fn spring_response(len: f64, rest: f64, k: f64, kc: f64) -> (f64, f64) {
+    let e = len - rest;
+    if e >= 0.0 {
+        (k * e, k)
+    } else if kc < k && e < -JAM_STRAIN * rest {
+        (kc * e + k * (e + JAM_STRAIN * rest), kc + k)
+    } else {
+        (kc * e, kc)
+    }
+}
+
+/// Energy of a spring of length `len` (J): the integral of [`spring_response`]'s tension.
 #[inline]
-pub fn spring_gradient(r: DVec3, rest: f64, k: f64) -> DVec3 {
+pub fn spring_energy(len: f64, rest: f64, k: f64, kc: f64) -> f64 {
+    let e = len - rest;
+    if e >= 0.0 {
+        0.5 * k * e * e
+    } else {
+        let jam = e + JAM_STRAIN * rest;
+        let jammed = if kc < k && jam < 0.0 {
+            0.5 * k * jam * jam
+        } else {
+            0.0
+        };
+        0.5 * kc * e * e + jammed
+    }
+}
+
+/// ∂/∂xa of a spring's energy with r = xa − xb: f·r/|r| with f from [`spring_response`] (zero
+/// for coincident ends).
+#[inline]
+pub fn spring_gradient(r: DVec3, rest: f64, k: f64, kc: f64) -> DVec3 {
     let len = r.length();
     if len > 0.0 {
-        r * (k * (len - rest) / len)
+        r * (spring_response(len, rest, k, kc).0 / len)
     } else {
         DVec3::ZERO
     }

@@ -3,8 +3,9 @@
 
 use glam::{DVec3, Vec3};
 
+use super::shading::angle_weighted_normals;
 use crate::cloth::FrameCache;
-use crate::mesh::{vertex_normals, Mesh};
+use crate::mesh::Mesh;
 
 /// Positions and normals of every render vertex at every frame 0..=N.
 ///
@@ -19,7 +20,8 @@ pub struct RenderFrames {
 }
 
 impl RenderFrames {
-    /// Maps every frame of `cache` onto `mesh`'s render vertices, with smooth normals.
+    /// Maps every frame of `cache` onto `mesh`'s render vertices, with smooth (corner-angle
+    /// weighted) normals.
     ///
     /// # Panics
     /// When the cache's particle count differs from the mesh's (callers check first).
@@ -81,10 +83,11 @@ pub struct RenderFrame {
     pub normals: Vec<Vec3>,
 }
 
-/// Maps particle positions to render vertices, with smooth normals from the surface triangles.
+/// Maps particle positions to render vertices, with smooth normals from the surface triangles
+/// (corner-angle weighted, as Blender computes them: see [`angle_weighted_normals`]).
 pub fn render_frame(mesh: &Mesh, particles: &[Vec3], scratch: &mut Vec<DVec3>) -> RenderFrame {
     let p64: Vec<DVec3> = particles.iter().map(|p| p.as_dvec3()).collect();
-    vertex_normals(&p64, &mesh.triangles, scratch);
+    angle_weighted_normals(&p64, &mesh.triangles, scratch);
     RenderFrame {
         positions: mesh
             .render_vertices

@@ -1,14 +1,19 @@
 //! Writers for output files.
 
 pub mod atomic;
+pub mod basis;
 pub mod compact;
+pub mod estimate;
 pub mod frames;
 pub mod gltf_doc;
 pub mod morph;
+pub mod playback;
+pub mod shading;
 pub mod skin;
 pub mod statics;
 pub mod vat;
 
+pub use basis::{BasisOptions, BasisSize, BasisStats, QuantizeMode};
 pub use compact::SparseMode;
 pub use frames::RenderFrames;
 pub use gltf_doc::{GltfBuilder, Written};

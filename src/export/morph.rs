@@ -183,8 +183,12 @@ pub fn encode_morph_gltf(
         None => KeyframeSelection::all(frames.frame_count()),
     };
     let mut b = GltfBuilder::new();
-    let (attributes, indices) = base_primitive(&mut b, mesh, frames, options.normals);
-    let (targets, mut stats) = morph_targets(&mut b, frames, &selection, options);
+    let normals = options
+        .normals
+        .then(|| super::shading::base_normals(mesh, frames));
+    let (attributes, indices) = base_primitive(&mut b, mesh, frames, normals.as_deref());
+    let (targets, mut stats) =
+        morph_targets(&mut b, frames, &selection, options, normals.as_deref());
     let names: Vec<String> = selection.kept[1..]
         .iter()
         .map(|k| format!("frame_{k:04}"))
@@ -227,6 +231,10 @@ pub fn encode_morph_gltf(
     });
     b.root.scene = Some(scene);
     weights_animation(&mut b, node, &selection.kept, options);
+    super::playback::stamp(
+        &mut b.root,
+        &super::playback::Playback::frames(options.fps, frames.frame_count(), &options.name),
+    );
     stats.frames = frames.frame_count();
     stats.kept_frames = selection.kept;
     stats.max_interpolation_error = selection.max_error;
@@ -242,12 +250,13 @@ type Attributes = std::collections::BTreeMap<
     json::Index<json::Accessor>,
 >;
 
-/// The base (frame 0) attributes and the triangle indices.
+/// The base (frame 0) attributes and the triangle indices; `normals` is the base NORMAL (see
+/// [`super::shading::base_normals`]), none with `--normals off`.
 fn base_primitive(
     b: &mut GltfBuilder,
     mesh: &Mesh,
     frames: &RenderFrames,
-    normals: bool,
+    normals: Option<&[Vec3]>,
 ) -> (Attributes, json::Index<json::Accessor>) {
     let array = Some(json::buffer::Target::ArrayBuffer);
     let mut attributes = std::collections::BTreeMap::new();
@@ -255,10 +264,10 @@ fn base_primitive(
         Valid(json::mesh::Semantic::Positions),
         b.vec3(frames.positions(0), array, true),
     );
-    if normals {
+    if let Some(normals) = normals {
         attributes.insert(
             Valid(json::mesh::Semantic::Normals),
-            b.vec3(frames.normals(0), array, false),
+            b.vec3(normals, array, false),
         );
     }
     if mesh.has_uvs() {
@@ -273,13 +282,14 @@ fn base_primitive(
     (attributes, b.indices(&indices))
 }
 
-/// One target per kept frame after frame 0: POSITION (and NORMAL) deltas from the base, dense
-/// or sparse.
+/// One target per kept frame after frame 0: POSITION (and, from `base_normals`, NORMAL) deltas
+/// from the base, dense or sparse.
 fn morph_targets(
     b: &mut GltfBuilder,
     frames: &RenderFrames,
     selection: &KeyframeSelection,
     options: &MorphOptions,
+    base_normals: Option<&[Vec3]>,
 ) -> (Vec<json::mesh::MorphTarget>, CacheStats) {
     let mut stats = CacheStats {
         targets: 0,
@@ -300,10 +310,10 @@ fn morph_targets(
         let dp = difference(frames.positions(k), frames.positions(0));
         let (positions, e) = delta_accessor(b, &dp, options.sparse, true);
         count(e);
-        let normals = options.normals.then(|| {
+        let normals = base_normals.map(|base| {
             let (n, e) = delta_accessor(
                 b,
-                &difference(frames.normals(k), frames.normals(0)),
+                &super::shading::normal_deltas(frames.normals(k), frames.normals(0), base),
                 options.sparse,
                 false,
             );
@@ -327,7 +337,7 @@ fn difference(a: &[Vec3], b: &[Vec3]) -> Vec<Vec3> {
 }
 
 /// The double-sided cloth material.
-fn cloth_material(b: &mut GltfBuilder) -> json::Index<json::Material> {
+pub(crate) fn cloth_material(b: &mut GltfBuilder) -> json::Index<json::Material> {
     b.root.push(json::Material {
         name: Some("cloth".into()),
         double_sided: true,
@@ -378,6 +388,6 @@ fn weights_animation(
 }
 
 /// OBJ texture coordinates have v up; glTF's have v down.
-fn flip_v(uv: [f32; 2]) -> [f32; 2] {
+pub(crate) fn flip_v(uv: [f32; 2]) -> [f32; 2] {
     [uv[0], 1.0 - uv[1]]
 }

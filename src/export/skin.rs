@@ -4,7 +4,7 @@
 //! order, rest translation = offset), a skinned arm mesh (a tapered box per bone, each rigidly
 //! weighted to its bone's joint) at the scene root, a pen-tip marker under the end effector, the
 //! target path as a LINES mesh, and the drawn trail as LINE_STRIP pieces revealed one after
-//! another by STEP scale keys. For a rig the input document is written back with only one
+//! another by STEP scale keys (half a frame before the frame that draws each piece's end). For a rig the input document is written back with only one
 //! animation added.
 //!
 //! Quaternions are written (x, y, z, w), normalised in `f32` and sign-continuous (each key is
@@ -406,7 +406,10 @@ pub fn write_chain_gltf(
                     json::mesh::Mode::LineStrip,
                 )],
             );
-            let reveal = (end as f64 / frames.fps) as f32;
+            // Revealed half a frame before the frame that draws its last point, so every
+            // viewer shows it from that frame on (a STEP key exactly on a frame is at the mercy
+            // of f32 rounding of the key time).
+            let reveal = ((end as f64 - 0.5) / frames.fps) as f32;
             let hidden = end > 0;
             let node = b.root.push(json::Node {
                 name: Some(format!("trail_{:03}", pieces.len())),
@@ -444,6 +447,10 @@ pub fn write_chain_gltf(
         extensions: None,
         extras: Default::default(),
     });
+    super::playback::stamp(
+        &mut b.root,
+        &super::playback::Playback::frames(frames.fps, frames.frames(), frames.name),
+    );
     let scene = b.root.push(json::Scene {
         name: Some("scenebake ik".into()),
         nodes: scene_nodes,
@@ -454,13 +461,21 @@ pub fn write_chain_gltf(
     b.write(path)
 }
 
-/// Writes `doc` back with one animation added: rotation channels for the chain joints `nodes`
-/// (all but the tip, whose rotation does not move the end effector). Chain nodes stored as a
-/// `matrix` are rewritten as the equivalent translation/rotation/scale, as glTF requires for
-/// animated nodes. Nodes holding a skinned mesh that are not scene roots are moved to the root of
-/// their scenes (glTF ignores parent transforms for skinned meshes, so nothing changes visually,
-/// and the validator warns otherwise). Everything else (meshes, skins, materials, textures,
-/// existing animations) is kept; the new data is appended to the single binary buffer.
+/// Writes `doc` back with one animation added, placed first in `animations` (viewers play the
+/// first animation: Blender makes it the active action, three.js loaders list it first):
+/// rotation channels for the chain joints `nodes` (all but the tip, whose rotation does not move
+/// the end effector), and constant channels (their node transforms, keyed at the first and last
+/// frame) for every other transform of every joint of the skins the chain belongs to, and of the
+/// nodes between those joints. So the animation gives every bone a defined pose: Blender keeps a
+/// bone's pose from the previously active action where the new action has no key for it.
+///
+/// Keyed nodes stored as a `matrix` are rewritten as the equivalent translation/rotation/scale,
+/// as glTF requires for animated nodes. Nodes holding a skinned mesh that are not scene roots are
+/// moved to the root of their scenes (glTF ignores parent transforms for skinned meshes, so
+/// nothing changes visually, and the validator warns otherwise). Everything else (meshes, skins,
+/// materials, textures, existing animations) is kept; the new data is appended to the single
+/// binary buffer. The bake's fps and frame range go into `asset.extras` (see
+/// [`super::playback`]).
 ///
 /// # Errors
 /// Write errors ([`crate::Error::Io`], [`crate::Error::Export`]).
@@ -490,15 +505,150 @@ pub fn write_rig_gltf(
         .enumerate()
         .map(|(i, &nd)| (i, json::Index::new(nd as u32)))
         .collect();
-    let (channels, samplers) = rotation_channels(&mut b, frames, &animated);
-    b.root.push(json::Animation {
-        name: Some(frames.name.into()),
-        channels,
-        samplers,
-        extensions: None,
-        extras: Default::default(),
-    });
+    let (mut channels, mut samplers) = rotation_channels(&mut b, frames, &animated);
+    hold_channels(&mut b, frames, nodes, &mut channels, &mut samplers);
+    b.root.animations.insert(
+        0,
+        json::Animation {
+            name: Some(frames.name.into()),
+            channels,
+            samplers,
+            extensions: None,
+            extras: Default::default(),
+        },
+    );
+    super::playback::stamp(
+        &mut b.root,
+        &super::playback::Playback::frames(frames.fps, frames.frames(), frames.name),
+    );
     b.write(path)
+}
+
+/// The nodes a skinning viewer poses with the chain `nodes`: every joint of each skin holding a
+/// chain node, the nodes between those joints (Blender makes them bones too), and the chain
+/// itself; sorted.
+pub fn posed_nodes(root: &json::Root, nodes: &[usize]) -> Vec<usize> {
+    let mut parents = vec![None; root.nodes.len()];
+    for (i, n) in root.nodes.iter().enumerate() {
+        for c in n.children.iter().flatten() {
+            if let Some(p) = parents.get_mut(c.value()) {
+                *p = Some(i);
+            }
+        }
+    }
+    let mut posed = vec![false; root.nodes.len()];
+    for &n in nodes {
+        posed[n] = true;
+    }
+    for skin in &root.skins {
+        let joints: Vec<usize> = skin.joints.iter().map(|j| j.value()).collect();
+        if !joints.iter().any(|j| nodes.contains(j)) {
+            continue;
+        }
+        let is_joint = |i: usize| joints.contains(&i);
+        for &j in &joints {
+            posed[j] = true;
+            // Walk up to the nearest ancestor joint; the nodes passed on the way are between
+            // joints. The walk is bounded in case the hierarchy has a cycle.
+            let mut between = Vec::new();
+            let mut cur = parents[j];
+            let mut steps = 0;
+            while let Some(p) = cur {
+                if is_joint(p) {
+                    for &n in &between {
+                        posed[n] = true;
+                    }
+                    break;
+                }
+                between.push(p);
+                cur = parents[p];
+                steps += 1;
+                if steps > root.nodes.len() {
+                    break;
+                }
+            }
+        }
+    }
+    (0..posed.len()).filter(|&i| posed[i]).collect()
+}
+
+/// Constant channels holding every transform the chain's rotation keys leave out, for every
+/// node of [`posed_nodes`]: LINEAR keys at the first and last frame time, with the node's own
+/// translation, rotation and scale (node matrices are decomposed and replaced by TRS).
+fn hold_channels(
+    b: &mut GltfBuilder,
+    frames: &IkFrames<'_>,
+    chain_nodes: &[usize],
+    channels: &mut Vec<json::animation::Channel>,
+    samplers: &mut Vec<json::animation::Sampler>,
+) {
+    let rotated = &chain_nodes[..chain_nodes.len() - 1];
+    let posed = posed_nodes(&b.root, chain_nodes);
+    if posed.is_empty() {
+        return;
+    }
+    let end = frames.times().last().copied().unwrap_or(0.0);
+    let times: Vec<f32> = if end > 0.0 { vec![0.0, end] } else { vec![0.0] };
+    let input = b.scalars(&times, true);
+    for node in posed {
+        let (t, r, s) = node_trs_f32(&mut b.root.nodes[node]);
+        let index = json::Index::new(node as u32);
+        let mut push = |b: &mut GltfBuilder, property, bytes: Vec<u8>, type_| {
+            let output = b.accessor(
+                &bytes,
+                times.len(),
+                type_,
+                json::accessor::ComponentType::F32,
+                None,
+                None,
+                false,
+            );
+            channels.push(channel(samplers.len(), index, property));
+            samplers.push(sampler(
+                input,
+                output,
+                json::animation::Interpolation::Linear,
+            ));
+        };
+        let repeat = |v: &[f32]| super::gltf_doc::f32_bytes(times.iter().flat_map(|_| v.to_vec()));
+        push(
+            b,
+            json::animation::Property::Translation,
+            repeat(&t),
+            json::accessor::Type::Vec3,
+        );
+        if !rotated.contains(&node) {
+            push(
+                b,
+                json::animation::Property::Rotation,
+                repeat(&r),
+                json::accessor::Type::Vec4,
+            );
+        }
+        push(
+            b,
+            json::animation::Property::Scale,
+            repeat(&s),
+            json::accessor::Type::Vec3,
+        );
+    }
+}
+
+/// A node's translation, rotation (x, y, z, w; unit) and scale; a `matrix` is decomposed and
+/// replaced by the equivalent TRS (glTF forbids animating matrix nodes).
+fn node_trs_f32(node: &mut json::Node) -> ([f32; 3], [f32; 4], [f32; 3]) {
+    if let Some(m) = node.matrix.take() {
+        let (s, r, t) = glam::Mat4::from_cols_array(&m).to_scale_rotation_translation();
+        node.translation = Some(t.to_array());
+        node.rotation = Some(json::scene::UnitQuaternion(r.normalize().to_array()));
+        node.scale = Some(s.to_array());
+    }
+    let t = node.translation.unwrap_or([0.0; 3]);
+    let r = node.rotation.map_or([0.0, 0.0, 0.0, 1.0], |q| {
+        glam::Quat::from_array(q.0).normalize().to_array()
+    });
+    let s = node.scale.unwrap_or([1.0; 3]);
+    (t, r, s)
 }
 
 /// Moves nodes with a skinned mesh that have a parent to the root of the scenes holding that

@@ -239,6 +239,8 @@ pub struct IkReport {
     pub seconds_total: f64,
     /// Files written.
     pub files: Vec<PathBuf>,
+    /// What the bake repaired or could not do as asked (printed on the terminal too).
+    pub warnings: Vec<String>,
 }
 
 struct Setup {
@@ -587,8 +589,12 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
         rotations: &rotations,
         name: "ik",
     };
+    let mut warnings = Vec::new();
     let written = match setup.rig {
-        Some((doc, nodes)) => write_rig_gltf(&job.output, doc, chain, &nodes, &frames)?,
+        Some((doc, nodes)) => {
+            warnings.extend(doc.warnings.iter().cloned());
+            write_rig_gltf(&job.output, doc, chain, &nodes, &frames)?
+        }
         None => write_chain_gltf(&job.output, chain, &rest, &frames, &targets, &tips)?,
     };
     let mut report = IkReport {
@@ -610,6 +616,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
         seconds_solve,
         seconds_total: 0.0,
         files: written.files,
+        warnings,
     };
     if let Some(path) = &job.report {
         report.seconds_total = t0.elapsed().as_secs_f64();

@@ -23,6 +23,8 @@ pub struct RigDocument {
     pub root: json::Root,
     /// The merged binary buffer (4-byte aligned).
     pub bin: Vec<u8>,
+    /// What loading repaired (skin weights renormalised), one sentence each.
+    pub warnings: Vec<String>,
 }
 
 /// A chain found in a rig: the solver chain and the node index of each joint.
@@ -35,7 +37,9 @@ pub struct RigChain {
 }
 
 impl RigDocument {
-    /// Loads a `.glb` or `.gltf` file (external and base64 buffers supported).
+    /// Loads a `.glb` or `.gltf` file (external and base64 buffers supported). Skin weights
+    /// that do not sum to 1 are renormalised (see [`crate::io::skin_weights`]) and listed in
+    /// `warnings`.
     ///
     /// # Errors
     /// [`Error::Io`] when unreadable, [`Error::Gltf`] when not valid glTF.
@@ -96,14 +100,33 @@ impl RigDocument {
             image.uri = None;
         }
         root.buffer_views.extend(new_views);
+        let mut warnings = Vec::new();
+        let fixed = crate::io::skin_weights::renormalise(&mut root, &mut bin);
+        if fixed.vertices > 0 {
+            let (lo, hi) = fixed.range;
+            let mut w = format!(
+                "{}: renormalised the skin weights of {} vertices (they summed to {lo:.3}–{hi:.3}, glTF requires 1)",
+                path.display(),
+                fixed.vertices
+            );
+            if fixed.zero > 0 {
+                w.push_str(&format!(
+                    "; {} vertices had no weight at all and now follow their first joint",
+                    fixed.zero
+                ));
+            }
+            warnings.push(w);
+        }
         Ok(RigDocument {
             path: path.into(),
             root,
             bin,
+            warnings,
         })
     }
 
-    /// Resolves a joint reference: `#N` for node N, otherwise a node name.
+    /// Resolves a joint reference: `#N` for node N, otherwise a node name, or `Node_N` for an
+    /// unnamed node N (the name Blender gives it).
     ///
     /// # Errors
     /// [`Error::UnknownJoint`].
@@ -120,10 +143,19 @@ impl RigDocument {
                 Err(unknown())
             };
         }
-        self.root
+        if let Some(i) = self
+            .root
             .nodes
             .iter()
             .position(|n| n.name.as_deref() == Some(joint))
+        {
+            return Ok(i);
+        }
+        // Blender names an unnamed node `Node_N` (its importer's default): accept that too.
+        joint
+            .strip_prefix("Node_")
+            .and_then(|n| n.parse::<usize>().ok())
+            .filter(|&i| self.root.nodes.get(i).is_some_and(|n| n.name.is_none()))
             .ok_or_else(unknown)
     }
 

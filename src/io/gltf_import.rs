@@ -50,6 +50,66 @@ pub fn import_gltf(path: &Path) -> Result<Imported> {
     Ok((gltf.document, buffers, images))
 }
 
+/// As [`import_gltf`], but also accepts files that require KHR_mesh_quantization (which the
+/// `gltf` crate's validation refuses as unsupported), for callers that read only the document
+/// structure and float data (`inspect`); every other validation error is still reported.
+///
+/// # Errors
+/// As [`import_gltf`].
+pub fn import_gltf_for_inspection(path: &Path) -> Result<Imported> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let Ok(unchecked) = gltf::Gltf::from_slice_without_validation(&bytes) else {
+        return import_gltf(path);
+    };
+    let root = unchecked.document.as_json();
+    if !root
+        .extensions_required
+        .iter()
+        .any(|e| e == crate::export::basis::KHR_MESH_QUANTIZATION)
+    {
+        return import_gltf(path);
+    }
+    check_position_accessors(path, &unchecked)?;
+    check_image_sources(path, &unchecked)?;
+    check_external_files(path, &unchecked)?;
+    let mut errors = Vec::new();
+    gltf::json::validation::Validate::validate(
+        root,
+        root,
+        gltf::json::Path::new,
+        &mut |p: &dyn Fn() -> gltf::json::Path, e| {
+            let p = p();
+            let quantization = matches!(e, gltf::json::validation::Error::Unsupported)
+                && p.as_str()
+                    .contains(crate::export::basis::KHR_MESH_QUANTIZATION);
+            if !quantization {
+                errors.push((p, e));
+            }
+        },
+    );
+    if !errors.is_empty() {
+        return Err(Error::Gltf {
+            path: path.into(),
+            error: gltf::Error::Validation(errors),
+        });
+    }
+    let base = path.parent().unwrap_or(Path::new(""));
+    let gltf = unchecked;
+    let buffers =
+        gltf::import_buffers(&gltf.document, Some(base), gltf.blob.clone()).map_err(|error| {
+            Error::Gltf {
+                path: path.into(),
+                error,
+            }
+        })?;
+    let images =
+        gltf::import_images(&gltf.document, Some(base), &buffers).map_err(|error| Error::Gltf {
+            path: path.into(),
+            error,
+        })?;
+    Ok((gltf.document, buffers, images))
+}
+
 fn check_position_accessors(path: &Path, gltf: &gltf::Gltf) -> Result<()> {
     let root = gltf.document.as_json();
     for (m, mesh) in root.meshes.iter().enumerate() {

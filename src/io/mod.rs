@@ -3,4 +3,5 @@
 pub mod gltf_import;
 pub mod gltf_mesh;
 pub mod obj;
+pub mod skin_weights;
 pub mod tet;

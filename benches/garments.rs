@@ -1,0 +1,167 @@
+//! Time to tolerance on real garments: each solver and model, how many iterations and how long
+//! per frame it takes to bring every step below the tolerance, and what the garment does.
+//!
+//! ```text
+//! cargo bench --bench garments                 # every case, 10 frames
+//! cargo bench --bench garments -- skirt8K      # cases whose label contains "skirt8K"
+//! FRAMES=30 cargo bench --bench garments -- dress
+//! ```
+//!
+//! Prints one markdown row per case: iterations per step (median, max), ms per frame, the share
+//! of frames within the tolerance, the hem drop (lowest vertex, initial minus current height) at
+//! frames 5 and 10, and the largest stretch and compression of any edge over the bake. Cases run
+//! one after another in one process, so their ratios are measured side by side.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use scenebake::bake::cloth::{simulate_cloth, ClothJob, ClothSource, SimulatedCloth};
+use scenebake::cloth::collide::ColliderSpec;
+use scenebake::cloth::pins::PinSpec;
+use scenebake::cloth::springs::SpringKind;
+use scenebake::cloth::SolverKind;
+
+struct Case {
+    label: String,
+    job: ClothJob,
+}
+
+fn garment(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("meshes/garments")
+        .join(name)
+}
+
+fn cases(frames: usize) -> Vec<Case> {
+    let mut out = Vec::new();
+    let skirts = [
+        (
+            "skirt8K",
+            "skirt8K.obj",
+            "box:-0.2,0.999,-0.2,0.2,1.001,0.2",
+        ),
+        (
+            "circle_skirt",
+            "circle_skirt.obj",
+            "box:-0.2,0.999,-0.2,0.2,1.001,0.2",
+        ),
+    ];
+    let mut add = |label: String, mut job: ClothJob| {
+        job.frames = Some(frames);
+        out.push(Case { label, job });
+    };
+    for (name, file, pin) in skirts {
+        let base = || {
+            let mut job = ClothJob::new(ClothSource::File(garment(file)), "unused.glb".into());
+            job.pins = vec![pin.parse::<PinSpec>().unwrap()];
+            job
+        };
+        add(format!("{name} cotton newton 0.1 (default)"), base());
+        let mut job = base();
+        job.tolerance = 1e-3;
+        add(format!("{name} cotton newton 1e-3 (reference)"), job);
+        let mut job = base();
+        job.solver = SolverKind::Fast;
+        add(format!("{name} cotton fast 0.1 (cap 500)"), job);
+        let mut job = base();
+        job.stiffness = Some(1000.0);
+        job.bend_stiffness = Some(2.0);
+        job.density = Some(0.2);
+        add(format!("{name} labs' springs 1000/2 newton 0.1"), job);
+        // Dropped, unpinned, onto a sphere below its waist.
+        let mut job = base();
+        job.pins.clear();
+        job.colliders = vec!["sphere:0,0.55,0,0.3".parse::<ColliderSpec>().unwrap()];
+        add(format!("{name} cotton newton 0.1 dropped on a sphere"), job);
+    }
+    let mut job = ClothJob::new(
+        ClothSource::File(garment("dress_draped.obj")),
+        "unused.glb".into(),
+    );
+    job.colliders = vec![ColliderSpec::Mesh(garment("mannequin.obj"))];
+    add("dress on mannequin cotton newton 0.1".into(), job);
+    out
+}
+
+fn median(v: &mut [usize]) -> usize {
+    v.sort_unstable();
+    v[v.len() / 2]
+}
+
+fn main() {
+    let frames: usize = std::env::var("FRAMES")
+        .ok()
+        .and_then(|f| f.parse().ok())
+        .unwrap_or(10);
+    let filters: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
+    println!(
+        "| case | particles | iterations/step (median, max) | ms/frame | frames within tolerance | \
+         hem drop f5 / f10 (mm) | max stretch / compression (%) |"
+    );
+    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: |");
+    for case in cases(frames) {
+        if !filters.is_empty() && !filters.iter().any(|f| case.label.contains(f.as_str())) {
+            continue;
+        }
+        let start = Instant::now();
+        let result = simulate_cloth(&case.job, &mut |_, _| {});
+        let wall = start.elapsed().as_secs_f64();
+        let SimulatedCloth {
+            prepared,
+            simulation,
+        } = match result {
+            Ok(s) => s,
+            Err(e) => {
+                println!("| {} | error: {e} |", case.label);
+                continue;
+            }
+        };
+        let model = &prepared.model;
+        let cache = &simulation.cache;
+        let min_y = |k: usize| {
+            cache
+                .frame(k.min(cache.frame_count() - 1))
+                .iter()
+                .map(|p| p.y)
+                .fold(f32::INFINITY, f32::min)
+        };
+        let drop = |k: usize| 1e3 * (min_y(0) - min_y(k));
+        let (mut stretch, mut squash) = (0.0f64, 0.0f64);
+        for k in 1..cache.frame_count() {
+            let f = cache.frame(k);
+            for s in model
+                .springs
+                .iter()
+                .filter(|s| s.kind == SpringKind::Stretch)
+            {
+                let len = f[s.a as usize]
+                    .as_dvec3()
+                    .distance(f[s.b as usize].as_dvec3());
+                let strain = len / s.rest - 1.0;
+                stretch = stretch.max(strain);
+                squash = squash.min(strain);
+            }
+        }
+        let mut its: Vec<usize> = simulation.frames.iter().map(|f| f.iterations).collect();
+        let max_its = its.iter().copied().max().unwrap_or(0);
+        let within = simulation.frames.iter().filter(|f| f.converged).count();
+        println!(
+            "| {} | {} | {}, {} | {:.0} | {}/{} | {:.0} / {:.0} | {:.1} / {:.1} |",
+            case.label,
+            model.particle_count(),
+            median(&mut its),
+            max_its,
+            1e3 * simulation.seconds / frames as f64,
+            within,
+            frames,
+            drop(5),
+            drop(10),
+            100.0 * stretch,
+            100.0 * squash,
+        );
+        let _ = wall;
+    }
+}

@@ -1,0 +1,1307 @@
+//! Compact morph caches: a morph basis (`--basis K|auto`) and quantised attributes
+//! (`--quantize`, KHR_mesh_quantization).
+//!
+//! **The basis.** One target per frame stores F deltas of V vertices. The motion of a cloth is
+//! far more regular than that: the frame deltas `d_f = p_f - p_0` (stacked as the columns of a
+//! 3V × (F-1) matrix D) are well approximated by a few directions. A thin SVD of D (faer) gives
+//! orthonormal directions `u_1, u_2, ...` ordered by singular value; the first K span the best
+//! rank-K subspace in the least-squares sense (Eckart–Young). Each frame is then
+//! `p_f ≈ p_0 + Σ_k c_fk u_k`.
+//!
+//! **Weights in [0, 1].** glTF weights may be any float, but Blender clamps a shape key's value
+//! to its slider range, and its importer widens that range only from the first key and the
+//! default weight. So every coefficient range `[lo_k, hi_k]` (padded by 1 %) is mapped onto
+//! [0, 1]: the written base is `b = p_0 + Σ lo_k u_k`, target k is `(hi_k - lo_k) u_k`, and the
+//! weights `w_fk = (c_fk - lo_k) / (hi_k - lo_k)` lie in [0, 1]. The mesh's default weights are
+//! frame 0's, so a player without animation shows frame 0.
+//!
+//! **Refit and measurement.** After the base and targets are rounded to what the file stores
+//! (`f32`, or `int16` when quantised), each frame's weights are refitted by least squares against
+//! the baked frame (a K × K normal system) and clamped to [0, 1]. The error is then *measured*:
+//! every baked frame is played back as a player computes it (`f32`, base plus weighted targets,
+//! then the node transform; dropped frames with their interpolated weights) and compared with
+//! the bake; the largest vertex distance is reported. `auto` takes the smallest K whose measured
+//! error is within the tolerance (the f64 projection error picks the first candidate; the
+//! measurement decides).
+//!
+//! **Normals.** glTF morphs normals with the same weights as positions, so a separate normal
+//! basis would need more targets. Instead each target's NORMAL delta is fitted by least squares
+//! given the position weights: per vertex, `min Σ_f |n_b + Σ_k w_fk m_k - n_f|²` over the base
+//! normal `n_b` and the deltas `m_k`; `n_b` is then normalised (glTF requires unit base normals)
+//! and the `m_k` refitted with it fixed. Players renormalise after blending; the largest and mean
+//! angle between the played normal and the baked one are reported.
+//!
+//! **Keyframes.** With `--keyframe-tolerance T`, the weight animation keeps only the frames
+//! needed so that every dropped frame, played back with interpolated weights, is within
+//! `max(T, M)` of the bake (M the basis tolerance): the same greedy forward scan as
+//! [`super::compact`], measured against the baked frames.
+//!
+//! **Quantisation** (KHR_mesh_quantization). Positions are stored as normalised `int16` in a
+//! local frame: `world = t + s · local`, with the uniform scale `s` and translation `t` on the
+//! cloth's node (uniform, so normals need no correction), chosen so that the base and every
+//! target fit in [-1, 1]. Each target is stored normalised to fill [-1, 1] (the refitted weights
+//! then carry its amplitude, still within [0, 1]; the node transform scales targets with the
+//! base), as `int16`, or as `int8` for the targets of smallest amplitude: their rounding bounds
+//! (amplitude · s · √3 / 254 each) are added up to a budget, the tolerance left over by the
+//! `int16` file, doubled while the measured error stays within the tolerance. The base normals
+//! are `int8`; each target's NORMAL deltas are `int8` when every component fits in [-1, 1];
+//! the others are `int8` clamped to [-1, 1] when that raises the measured normal error by at
+//! most 2° (largest) and 0.1° (mean) over the unclamped file (always with `--quantize on`),
+//! else `f32` (sparse where smaller). Vertex attributes keep 4-byte aligned elements (stride 8
+//! for `int16` VEC3, 4 for `int8` VEC3). `auto` quantises when the measured error stays within
+//! the tolerance, trying up to half as many extra targets again (the file stays smaller than the
+//! `f32` one); `on` always quantises (the error is reported); `off` never.
+//!
+//! Sparse targets: `f32` targets go through [`super::compact::delta_accessor`] (vertices whose
+//! delta is zero in every frame, such as pins, are exactly zero in every basis vector); quantised
+//! targets are always dense.
+
+use std::path::Path;
+
+use faer::Mat;
+use glam::{DVec3, Vec3};
+use gltf_json as json;
+use json::validation::Checked::Valid;
+
+use super::compact::{delta_accessor, DeltaEncoding};
+use super::frames::RenderFrames;
+use super::gltf_doc::{channel, primitive, sampler, GltfBuilder};
+use super::morph::{cloth_material, flip_v, CacheStats, EncodedMorph, Interpolation, MorphOptions};
+use super::statics::push_static_meshes;
+use crate::error::{Error, Result};
+use crate::mesh::Mesh;
+
+/// Name of the quantisation extension.
+pub const KHR_MESH_QUANTIZATION: &str = "KHR_mesh_quantization";
+
+/// `--basis`: how many basis targets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BasisSize {
+    /// Exactly this many targets (at most the number of baked frames after frame 0).
+    Fixed(usize),
+    /// The fewest targets that keep every baked frame within the tolerance (measured).
+    Auto,
+}
+
+impl std::str::FromStr for BasisSize {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        if s.eq_ignore_ascii_case("auto") {
+            return Ok(BasisSize::Auto);
+        }
+        match s.trim().parse::<usize>() {
+            Ok(k) if k >= 1 => Ok(BasisSize::Fixed(k)),
+            _ => Err(Error::option(
+                "--basis",
+                format!("`{s}`: expected a number of targets (1 or more) or `auto`"),
+            )),
+        }
+    }
+}
+
+/// `--quantize`: KHR_mesh_quantization for the basis cache.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum QuantizeMode {
+    /// Quantise when the measured error stays within the tolerance and the file gets smaller.
+    #[default]
+    Auto,
+    /// Always quantise.
+    On,
+    /// Never quantise.
+    Off,
+}
+
+/// Options of the basis encoding.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BasisOptions {
+    /// `--basis`.
+    pub size: BasisSize,
+    /// `--basis-tolerance` M (scene units): the largest vertex distance allowed between a played
+    /// frame and the bake (for `auto`, and for `--quantize auto`).
+    pub tolerance: f64,
+    /// `--max-targets N`: most targets written.
+    pub max_targets: Option<usize>,
+    /// `--quantize`.
+    pub quantize: QuantizeMode,
+}
+
+/// How the positions and normals are stored.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Quantization {
+    /// Component type of the base POSITION: `float` or `int16` (normalised).
+    pub positions: String,
+    /// Targets whose POSITION deltas are normalised int16.
+    pub int16_targets: usize,
+    /// Targets whose POSITION deltas are normalised int8.
+    pub int8_targets: usize,
+    /// Component type of the base NORMAL: `float` or `int8` (normalised); `none` without normals.
+    pub normals: String,
+    /// Targets whose NORMAL deltas are normalised int8 (the others are float).
+    pub int8_normal_targets: usize,
+    /// The node's uniform scale s (world = t + s · stored), 1 unquantised.
+    pub node_scale: f64,
+    /// The node's translation t, m.
+    pub node_translation: [f64; 3],
+}
+
+/// Bytes of each part of the file.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct PartBytes {
+    /// Base POSITION, NORMAL and TEXCOORD_0.
+    pub base: u64,
+    /// Triangle indices.
+    pub indices: u64,
+    /// Target POSITION deltas.
+    pub target_positions: u64,
+    /// Target NORMAL deltas.
+    pub target_normals: u64,
+    /// Weight animation (key times and weights).
+    pub animation: u64,
+    /// Static meshes (colliders).
+    pub statics: u64,
+    /// The JSON (and GLB headers), i.e. everything else.
+    pub json: u64,
+}
+
+/// What the basis encoding wrote and how close it is to the bake.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct BasisStats {
+    /// `--basis` as asked.
+    pub requested: BasisSize,
+    /// Basis targets written (K).
+    pub targets: usize,
+    /// `--basis-tolerance`, scene units.
+    pub tolerance: f64,
+    /// Largest vertex distance between a played frame and the bake, over every baked frame
+    /// (measured in `f32` as a player computes it), scene units.
+    pub max_error: f64,
+    /// The frame where it occurs.
+    pub worst_frame: usize,
+    /// The same with the basis alone in `f64` (before rounding and keyframe reduction).
+    pub projection_error: f64,
+    /// Largest angle between a played normal and the baked one, degrees (0 without normals).
+    pub max_normal_error_degrees: f64,
+    /// Mean of that angle over every vertex and frame, degrees.
+    pub mean_normal_error_degrees: f64,
+    /// The first singular values of the frame deltas (up to K + 8), m.
+    pub singular_values: Vec<f64>,
+    /// Storage of the attributes.
+    pub quantization: Quantization,
+    /// Bytes per part.
+    pub bytes: PartBytes,
+}
+
+/// A basis cache encoded in memory.
+#[derive(Debug, Clone)]
+pub struct EncodedBasis {
+    /// The files and the common cache figures (targets, kept frames, accessors).
+    pub morph: EncodedMorph,
+    /// Basis figures.
+    pub basis: BasisStats,
+}
+
+/// Padding of each coefficient range before it is mapped onto [0, 1], so that refitted weights
+/// rarely need clamping.
+const RANGE_PAD: f64 = 0.01;
+/// `--quantize auto` clamps normal deltas to int8 when the largest normal error grows by at
+/// most this (degrees)...
+const CLAMP_MAX_DEGREES: f64 = 2.0;
+/// ...and the mean normal error by at most this (degrees).
+const CLAMP_MEAN_DEGREES: f64 = 0.1;
+/// Largest value of a normalised int16.
+const I16: f64 = 32767.0;
+/// Largest value of a normalised int8.
+const I8: f64 = 127.0;
+
+/// The SVD of the frame deltas: orthonormal directions (3V each) and singular values.
+struct Svd {
+    directions: Vec<Vec<f64>>,
+    singular: Vec<f64>,
+}
+
+/// A candidate encoding: what the file stores, dequantised, and the weights of every frame.
+#[derive(Debug, Clone)]
+struct Candidate {
+    k: usize,
+    quantized: bool,
+    scale: f64,
+    translation: DVec3,
+    /// Stored base positions (local units), as the player reads them.
+    base: Vec<Vec3>,
+    base_q: Vec<[i16; 3]>,
+    /// Stored target deltas (local units).
+    deltas: Vec<Vec<Vec3>>,
+    /// Quantised target deltas, normalised to fill [-1, 1] (the weights carry the amplitude).
+    deltas_q: Vec<StoredDelta>,
+    /// Weights of every frame (F × K), in [0, 1].
+    weights: Vec<Vec<f32>>,
+}
+
+/// A quantised target's values.
+#[derive(Debug, Clone)]
+enum StoredDelta {
+    I16(Vec<[i16; 3]>),
+    I8(Vec<[i8; 3]>),
+}
+
+/// Encodes `frames` as a basis cache for `path` (see the module documentation).
+///
+/// # Errors
+/// [`Error::InvalidOption`] naming `--basis`, `--basis-tolerance`, `--max-targets` or
+/// `--keyframe-tolerance` for unusable values, or `--max-targets` (or `--basis-tolerance`) when
+/// the tolerance cannot be met within the targets allowed; [`Error::Export`] for too few frames
+/// or a bad static mesh; [`Error::Json`].
+pub fn encode_basis_gltf(
+    path: &Path,
+    mesh: &Mesh,
+    frames: &RenderFrames,
+    options: &MorphOptions,
+    basis: &BasisOptions,
+) -> Result<EncodedBasis> {
+    let f = frames.frame_count();
+    if f < 2 || frames.vertex_count() != mesh.render_vertices.len() {
+        return Err(Error::Export {
+            path: path.into(),
+            message: format!(
+                "{f} frames of {} vertices: need at least 2 frames of the mesh's {} render vertices",
+                frames.vertex_count(),
+                mesh.render_vertices.len()
+            ),
+        });
+    }
+    if let Some((name, problem)) = options
+        .static_meshes
+        .iter()
+        .find_map(|s| s.problem().map(|p| (&s.name, p)))
+    {
+        return Err(Error::Export {
+            path: path.into(),
+            message: format!("static mesh `{name}` {problem}"),
+        });
+    }
+    if !(basis.tolerance.is_finite() && basis.tolerance >= 0.0) {
+        return Err(Error::option(
+            "--basis-tolerance",
+            format!("{}: must be zero or a positive distance", basis.tolerance),
+        ));
+    }
+    let keyframe_tolerance = match options.keyframe_tolerance {
+        Some(t) if t.is_finite() && t >= 0.0 => Some(t),
+        Some(t) => {
+            return Err(Error::option(
+                "--keyframe-tolerance",
+                format!("{t}: must be zero or a positive distance"),
+            ))
+        }
+        None => None,
+    };
+    if basis.max_targets == Some(0) {
+        return Err(Error::option("--max-targets", "0: must be at least 1"));
+    }
+    let available = f - 1;
+    let cap = basis.max_targets.unwrap_or(usize::MAX).min(available);
+    if let BasisSize::Fixed(k) = basis.size {
+        if k > available {
+            return Err(Error::option(
+                "--basis",
+                format!("{k} targets: the bake has only {available} frames after frame 0"),
+            ));
+        }
+        if let Some(n) = basis.max_targets.filter(|&n| k > n) {
+            return Err(Error::option(
+                "--max-targets",
+                format!("{n}: fewer than the {k} targets --basis asks for"),
+            ));
+        }
+    }
+
+    let svd = frame_svd(frames).ok_or_else(|| Error::Export {
+        path: path.into(),
+        message: "the SVD of the frame deltas did not converge (non-finite positions?)".into(),
+    })?;
+    let projection = match basis.size {
+        BasisSize::Fixed(k) => projection_errors(frames, &svd, k, f64::NEG_INFINITY),
+        BasisSize::Auto => projection_errors(frames, &svd, cap, basis.tolerance),
+    };
+    let m = basis.tolerance;
+    // The bound every played frame must meet: M at keyed frames, max(T, M) at dropped ones.
+    let bound = keyframe_tolerance.map_or(m, |t| t.max(m));
+    let ks: Vec<usize> = match basis.size {
+        BasisSize::Fixed(k) => vec![k],
+        BasisSize::Auto => {
+            let first = projection
+                .iter()
+                .position(|&e| e <= m)
+                .map_or(cap, |i| i + 1);
+            (first.max(1)..=cap).collect()
+        }
+    };
+    let try_quantized = basis.quantize != QuantizeMode::Off;
+    let mut best: Option<(Candidate, Vec<usize>, f64, usize)> = None;
+    let mut float_pick: Option<(Candidate, Vec<usize>, f64, usize)> = None;
+    for &k in &ks {
+        let float = build(frames, &svd, k, false, &[]);
+        let keys = select_keys(frames, &float, keyframe_tolerance.map(|_| bound), options);
+        let (err, worst) = measure(frames, &float, &keys, options.interpolation);
+        let fits = err <= bound || basis.size != BasisSize::Auto;
+        if fits {
+            float_pick = Some((float, keys, err, worst));
+            break;
+        }
+        if best.as_ref().map_or(true, |b| err < b.2) {
+            best = Some((float, keys, err, worst));
+        }
+    }
+    let Some(float_pick) = float_pick else {
+        let (k, err) = best.map_or((cap, f64::INFINITY), |b| (b.0.k, b.2));
+        let message = format!(
+            "{m} m cannot be met with at most {cap} targets (best: {k} targets, {err:.3e} m); \
+             raise it, or allow more targets"
+        );
+        return Err(match basis.max_targets {
+            Some(n) if n < available => {
+                Error::option("--max-targets", format!("{n}: --basis-tolerance {message}"))
+            }
+            _ => Error::option("--basis-tolerance", message),
+        });
+    };
+    let mut pick = float_pick;
+    if try_quantized {
+        // Quantised targets are two thirds of the size of f32 ones: try as many extra targets as
+        // still make the file smaller.
+        let k0 = pick.0.k;
+        let limit = if basis.quantize == QuantizeMode::On || basis.size != BasisSize::Auto {
+            k0
+        } else {
+            (k0 * 3 / 2).min(cap)
+        };
+        for k in k0..=limit {
+            let q = build(frames, &svd, k, true, &[]);
+            let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
+            let (err, worst) = measure(frames, &q, &keys, options.interpolation);
+            if err <= bound || basis.quantize == QuantizeMode::On {
+                pick = (q, keys, err, worst);
+                break;
+            }
+        }
+        if pick.0.quantized && pick.2 < bound {
+            // Targets of small amplitude as int8 (half the bytes): the rounding bound of each
+            // is amplitude · s · √3 / 254; take the smallest ones while their bounds add up to
+            // a budget, doubling it while the measured error stays within the tolerance.
+            let (c, k) = (&pick.0, pick.0.k);
+            let step: Vec<f64> = (0..c.k)
+                .map(|t| {
+                    let amplitude = c.weights.iter().map(|w| w[t] as f64).fold(0.0, f64::max);
+                    amplitude * c.scale * 3f64.sqrt() / 254.0
+                })
+                .collect();
+            let mut order: Vec<usize> = (0..k).collect();
+            order.sort_by(|a, b| step[*a].total_cmp(&step[*b]));
+            let mut budget = bound - pick.2;
+            let mut chosen = 0;
+            for _ in 0..6 {
+                let mut int8 = vec![false; k];
+                let mut sum = 0.0;
+                let mut n = 0;
+                for &t in &order {
+                    if sum + step[t] > budget {
+                        break;
+                    }
+                    sum += step[t];
+                    int8[t] = true;
+                    n += 1;
+                }
+                if n > chosen {
+                    let q = build(frames, &svd, k, true, &int8);
+                    let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
+                    let (err, worst) = measure(frames, &q, &keys, options.interpolation);
+                    if err > bound {
+                        break;
+                    }
+                    chosen = n;
+                    pick = (q, keys, err, worst);
+                }
+                budget *= 2.0;
+            }
+        }
+    }
+    let (candidate, keys, max_error, worst_frame) = pick;
+    let k = candidate.k;
+    write(
+        path,
+        mesh,
+        frames,
+        options,
+        basis,
+        candidate,
+        keys,
+        (max_error, worst_frame),
+        match projection.get(k - 1) {
+            Some(e) => *e,
+            None => projection_errors(frames, &svd, k, f64::NEG_INFINITY)[k - 1],
+        },
+        svd.singular.iter().take(k + 8).copied().collect(),
+    )
+}
+
+/// The thin SVD of the frame deltas from frame 0 (rows: vertex coordinates; columns: frames
+/// 1..F). Rows that are zero in every frame (vertices that never move) are exactly zero in every
+/// direction. A cache that never moves gets one zero direction (one target of zeros). `None`
+/// when the SVD does not converge.
+fn frame_svd(frames: &RenderFrames) -> Option<Svd> {
+    let (f, v) = (frames.frame_count(), frames.vertex_count());
+    let p0 = frames.positions(0);
+    let d = Mat::<f64>::from_fn(3 * v, f - 1, |i, j| {
+        (frames.positions(j + 1)[i / 3][i % 3] - p0[i / 3][i % 3]) as f64
+    });
+    let still: Vec<bool> = (0..3 * v)
+        .map(|i| (0..f - 1).all(|j| d[(i, j)] == 0.0))
+        .collect();
+    let svd = d.thin_svd().ok()?;
+    let (u, s) = (svd.U(), svd.S().column_vector());
+    let r = s.nrows();
+    let scale = s[0].max(f64::MIN_POSITIVE);
+    let mut directions = Vec::new();
+    let mut singular = Vec::new();
+    for k in 0..r {
+        // Directions of a (numerically) zero singular value carry no motion.
+        if s[k] <= scale * 1e-12 {
+            break;
+        }
+        directions.push(
+            (0..3 * v)
+                .map(|i| if still[i] { 0.0 } else { u[(i, k)] })
+                .collect(),
+        );
+        singular.push(s[k]);
+    }
+    if directions.is_empty() {
+        directions.push(vec![0.0; 3 * v]);
+        singular.push(0.0);
+    }
+    Some(Svd {
+        directions,
+        singular,
+    })
+}
+
+/// For K = 1..=cap, the largest vertex distance between each frame and its orthogonal
+/// projection onto the first K directions (f64), m; stops after the first K whose error is at
+/// most `stop` (so the last entry is the first K within `stop`, when there is one).
+fn projection_errors(frames: &RenderFrames, svd: &Svd, cap: usize, stop: f64) -> Vec<f64> {
+    let (f, v) = (frames.frame_count(), frames.vertex_count());
+    let p0 = frames.positions(0);
+    let mut residual: Vec<Vec<f64>> = (1..f)
+        .map(|j| {
+            (0..3 * v)
+                .map(|i| (frames.positions(j)[i / 3][i % 3] - p0[i / 3][i % 3]) as f64)
+                .collect()
+        })
+        .collect();
+    let mut errors = Vec::new();
+    for u in svd.directions.iter().take(cap) {
+        let mut worst = 0.0f64;
+        for r in residual.iter_mut() {
+            let c: f64 = r.iter().zip(u).map(|(a, b)| a * b).sum();
+            for (a, b) in r.iter_mut().zip(u) {
+                *a -= c * b;
+            }
+            for x in r.chunks_exact(3) {
+                worst = worst.max((x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt());
+            }
+        }
+        errors.push(worst);
+        if worst <= stop {
+            return errors;
+        }
+    }
+    // With fewer directions than the cap, the remaining K reproduce the motion exactly.
+    while errors.len() < cap {
+        errors.push(0.0);
+    }
+    errors
+}
+
+/// Builds the K-target candidate: base and targets from the first K directions mapped so that
+/// weights lie in [0, 1], rounded to what the file stores (quantised or not), weights refitted.
+/// `int8[t]` stores target t as int8 (quantised candidates only).
+fn build(frames: &RenderFrames, svd: &Svd, k: usize, quantized: bool, int8: &[bool]) -> Candidate {
+    let (f, v) = (frames.frame_count(), frames.vertex_count());
+    let k = k.min(svd.directions.len());
+    let p0 = frames.positions(0);
+    let dirs = &svd.directions[..k];
+    // Coefficient ranges over every frame (frame 0 has coefficients 0).
+    let mut lo = vec![0.0f64; k];
+    let mut hi = vec![0.0f64; k];
+    for j in 1..f {
+        let p = frames.positions(j);
+        for (kk, u) in dirs.iter().enumerate() {
+            let c: f64 = (0..v)
+                .map(|i| {
+                    let d = (p[i] - p0[i]).as_dvec3();
+                    d.x * u[3 * i] + d.y * u[3 * i + 1] + d.z * u[3 * i + 2]
+                })
+                .sum();
+            lo[kk] = lo[kk].min(c);
+            hi[kk] = hi[kk].max(c);
+        }
+    }
+    for kk in 0..k {
+        let pad = RANGE_PAD * (hi[kk] - lo[kk]).max(f64::MIN_POSITIVE);
+        lo[kk] -= pad;
+        hi[kk] += pad;
+    }
+    let base: Vec<DVec3> = (0..v)
+        .map(|i| {
+            let mut b = p0[i].as_dvec3();
+            for (kk, u) in dirs.iter().enumerate() {
+                b += lo[kk] * DVec3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
+            }
+            b
+        })
+        .collect();
+    let deltas: Vec<Vec<DVec3>> = dirs
+        .iter()
+        .enumerate()
+        .map(|(kk, u)| {
+            let r = hi[kk] - lo[kk];
+            (0..v)
+                .map(|i| r * DVec3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]))
+                .collect()
+        })
+        .collect();
+    let (scale, translation) = if quantized {
+        local_frame(&base, &deltas)
+    } else {
+        (1.0, DVec3::ZERO)
+    };
+    let to_local = |p: DVec3| (p - translation) / scale;
+    let (base_s, base_q): (Vec<Vec3>, Vec<[i16; 3]>) = if quantized {
+        let q: Vec<[i16; 3]> = base.iter().map(|p| quantize_i16(to_local(*p))).collect();
+        (q.iter().map(|x| dequantize_i16(*x)).collect(), q)
+    } else {
+        (base.iter().map(|p| p.as_vec3()).collect(), Vec::new())
+    };
+    let mut deltas_s = Vec::with_capacity(k);
+    let mut deltas_q = Vec::new();
+    for (t, d) in deltas.iter().enumerate() {
+        if quantized {
+            // Fill [-1, 1]: the refitted weights then carry the amplitude (and stay in [0, 1]).
+            let amplitude = d
+                .iter()
+                .map(|x| x.abs().max_element())
+                .fold(0.0f64, f64::max)
+                / scale;
+            let unit = scale * amplitude.max(f64::MIN_POSITIVE);
+            if int8.get(t).copied().unwrap_or(false) {
+                let q: Vec<[i8; 3]> = d
+                    .iter()
+                    .map(|x| quantize_i8((*x / unit).as_vec3()))
+                    .collect();
+                deltas_s.push(q.iter().map(|x| dequantize_i8(*x)).collect());
+                deltas_q.push(StoredDelta::I8(q));
+            } else {
+                let q: Vec<[i16; 3]> = d.iter().map(|x| quantize_i16(*x / unit)).collect();
+                deltas_s.push(q.iter().map(|x| dequantize_i16(*x)).collect());
+                deltas_q.push(StoredDelta::I16(q));
+            }
+        } else {
+            deltas_s.push(d.iter().map(|x| x.as_vec3()).collect());
+        }
+    }
+    let mut c = Candidate {
+        k,
+        quantized,
+        scale,
+        translation,
+        base: base_s,
+        base_q,
+        deltas: deltas_s,
+        deltas_q,
+        weights: Vec::new(),
+    };
+    c.weights = refit_weights(frames, &c);
+    c
+}
+
+/// The uniform scale and translation that put the base and every target in [-1, 1].
+fn local_frame(base: &[DVec3], deltas: &[Vec<DVec3>]) -> (f64, DVec3) {
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for p in base {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let centre = (lo + hi) * 0.5;
+    let mut s = ((hi - lo) * 0.5).max_element();
+    for d in deltas.iter().flatten() {
+        s = s.max(d.abs().max_element());
+    }
+    (if s > 0.0 { s } else { 1.0 }, centre)
+}
+
+fn quantize_i16(x: DVec3) -> [i16; 3] {
+    x.to_array()
+        .map(|c| (c.clamp(-1.0, 1.0) * I16).round() as i16)
+}
+
+/// What a player reads from a normalised int16 (max(c / 32767, -1)), as f32.
+fn dequantize_i16(q: [i16; 3]) -> Vec3 {
+    Vec3::from_array(q.map(|c| (c as f32 / I16 as f32).max(-1.0)))
+}
+
+/// Least-squares weights of every frame for the stored base and targets, clamped to [0, 1].
+fn refit_weights(frames: &RenderFrames, c: &Candidate) -> Vec<Vec<f32>> {
+    let (f, v, k) = (frames.frame_count(), frames.vertex_count(), c.k);
+    let d: Vec<Vec<DVec3>> = c
+        .deltas
+        .iter()
+        .map(|t| t.iter().map(|x| x.as_dvec3()).collect())
+        .collect();
+    let mut gram = vec![0.0f64; k * k];
+    for a in 0..k {
+        for b in 0..=a {
+            let g: f64 = (0..v).map(|i| d[a][i].dot(d[b][i])).sum();
+            gram[a * k + b] = g;
+            gram[b * k + a] = g;
+        }
+    }
+    let chol = cholesky(&gram, k);
+    (0..f)
+        .map(|j| {
+            let p = frames.positions(j);
+            let target: Vec<DVec3> = (0..v)
+                .map(|i| (p[i].as_dvec3() - c.translation) / c.scale - c.base[i].as_dvec3())
+                .collect();
+            let rhs: Vec<f64> = (0..k)
+                .map(|a| (0..v).map(|i| d[a][i].dot(target[i])).sum())
+                .collect();
+            cholesky_solve(&chol, k, rhs)
+                .into_iter()
+                .map(|w| (w.clamp(0.0, 1.0)) as f32)
+                .collect()
+        })
+        .collect()
+}
+
+/// Lower Cholesky factor of the symmetric positive semi-definite n × n matrix `a` (row-major),
+/// with a tiny ridge so that a rank-deficient system still solves.
+fn cholesky(a: &[f64], n: usize) -> Vec<f64> {
+    let trace: f64 = (0..n).map(|i| a[i * n + i]).sum();
+    let ridge = 1e-14 * trace.max(f64::MIN_POSITIVE);
+    let mut l = vec![0.0f64; n * n];
+    for i in 0..n {
+        for j in 0..=i {
+            let mut s = a[i * n + j] - (0..j).map(|m| l[i * n + m] * l[j * n + m]).sum::<f64>();
+            if i == j {
+                s += ridge;
+                l[i * n + i] = s.max(ridge).sqrt();
+            } else {
+                l[i * n + j] = s / l[j * n + j];
+            }
+        }
+    }
+    l
+}
+
+/// Solves L Lᵀ x = b.
+fn cholesky_solve(l: &[f64], n: usize, mut b: Vec<f64>) -> Vec<f64> {
+    for i in 0..n {
+        let s: f64 = (0..i).map(|m| l[i * n + m] * b[m]).sum();
+        b[i] = (b[i] - s) / l[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let s: f64 = (i + 1..n).map(|m| l[m * n + i] * b[m]).sum();
+        b[i] = (b[i] - s) / l[i * n + i];
+    }
+    b
+}
+
+/// The weights a player evaluates at frame `j` from the keys `keys` (sorted, first 0, last F-1).
+fn played_weights(
+    c: &Candidate,
+    keys: &[usize],
+    j: usize,
+    interpolation: Interpolation,
+) -> Vec<f32> {
+    let at = keys.partition_point(|&key| key <= j) - 1;
+    let a = keys[at];
+    if a == j || at + 1 == keys.len() {
+        return c.weights[a].clone();
+    }
+    match interpolation {
+        Interpolation::Step => c.weights[a].clone(),
+        Interpolation::Linear => {
+            let b = keys[at + 1];
+            let t = (j - a) as f32 / (b - a) as f32;
+            c.weights[a]
+                .iter()
+                .zip(&c.weights[b])
+                .map(|(x, y)| x + t * (y - x))
+                .collect()
+        }
+    }
+}
+
+/// Vertex `i` as a player computes it with weights `w`: base plus weighted targets in f32, then
+/// the node transform.
+fn played_position(c: &Candidate, w: &[f32], i: usize) -> Vec3 {
+    let mut p = c.base[i];
+    for (d, wk) in c.deltas.iter().zip(w) {
+        p += *wk * d[i];
+    }
+    p * c.scale as f32 + c.translation.as_vec3()
+}
+
+/// Largest distance between a played frame and the bake over every frame, and its frame.
+fn measure(
+    frames: &RenderFrames,
+    c: &Candidate,
+    keys: &[usize],
+    interpolation: Interpolation,
+) -> (f64, usize) {
+    let mut worst = (0.0f64, 0usize);
+    for j in 0..frames.frame_count() {
+        let w = played_weights(c, keys, j, interpolation);
+        let e = frame_error(frames, c, &w, j, f64::INFINITY).unwrap_or(f64::INFINITY);
+        if e > worst.0 {
+            worst = (e, j);
+        }
+    }
+    worst
+}
+
+/// The largest vertex distance of frame `j` played with weights `w`, or `None` past `limit`.
+fn frame_error(
+    frames: &RenderFrames,
+    c: &Candidate,
+    w: &[f32],
+    j: usize,
+    limit: f64,
+) -> Option<f64> {
+    let mut worst = 0.0f64;
+    for (i, want) in frames.positions(j).iter().enumerate() {
+        let e = played_position(c, w, i)
+            .as_dvec3()
+            .distance(want.as_dvec3());
+        if e > limit {
+            return None;
+        }
+        worst = worst.max(e);
+    }
+    Some(worst)
+}
+
+/// The frames that get a weight key: all of them, or with a bound, the greedy forward scan that
+/// drops a frame when its played-back positions stay within the bound of the bake.
+fn select_keys(
+    frames: &RenderFrames,
+    c: &Candidate,
+    bound: Option<f64>,
+    options: &MorphOptions,
+) -> Vec<usize> {
+    let last = frames.frame_count() - 1;
+    let Some(bound) = bound else {
+        return (0..=last).collect();
+    };
+    let mut kept = vec![0];
+    let mut a = 0;
+    while a < last {
+        let mut b = a + 1;
+        'extend: for candidate in a + 2..=last {
+            let keys = [a, candidate];
+            for j in a + 1..candidate {
+                let w = played_weights(c, &keys, j, options.interpolation);
+                if frame_error(frames, c, &w, j, bound).is_none() {
+                    break 'extend;
+                }
+            }
+            b = candidate;
+        }
+        kept.push(b);
+        a = b;
+    }
+    kept
+}
+
+/// Base normals and per-target normal deltas fitted to the baked normals given the weights.
+/// Only the first `j` targets get normal deltas; the others' are zero.
+fn fit_normals(frames: &RenderFrames, c: &Candidate, j: usize) -> (Vec<Vec3>, Vec<Vec<Vec3>>) {
+    let (f, v, k) = (frames.frame_count(), frames.vertex_count(), j.min(c.k));
+    let w: Vec<Vec<f64>> = c
+        .weights
+        .iter()
+        .map(|r| r[..k].iter().map(|x| *x as f64).collect())
+        .collect();
+    // Regression on [1, w]: (K+1) × (K+1) normal matrix, shared by every vertex.
+    let n1 = k + 1;
+    let row = |j: usize, a: usize| if a == 0 { 1.0 } else { w[j][a - 1] };
+    let mut xtx = vec![0.0f64; n1 * n1];
+    for j in 0..f {
+        for a in 0..n1 {
+            for b in 0..n1 {
+                xtx[a * n1 + b] += row(j, a) * row(j, b);
+            }
+        }
+    }
+    let chol1 = cholesky(&xtx, n1);
+    let mut wtw = vec![0.0f64; k * k];
+    for a in 0..k {
+        for b in 0..k {
+            wtw[a * k + b] = xtx[(a + 1) * n1 + b + 1];
+        }
+    }
+    let chol = cholesky(&wtw, k);
+    let mut base = vec![Vec3::ZERO; v];
+    let mut deltas = vec![vec![Vec3::ZERO; v]; c.k];
+    for i in 0..v {
+        let normal = |j: usize| frames.normals(j)[i].as_dvec3();
+        let mut rhs1 = vec![DVec3::ZERO; n1];
+        for j in 0..f {
+            for (a, r) in rhs1.iter_mut().enumerate() {
+                *r += row(j, a) * normal(j);
+            }
+        }
+        let beta0 = DVec3::from_array(std::array::from_fn(|axis| {
+            cholesky_solve(&chol1, n1, rhs1.iter().map(|r| r[axis]).collect())[0]
+        }));
+        let nb = beta0.try_normalize().unwrap_or(normal(0));
+        let mut rhs = vec![DVec3::ZERO; k];
+        for (j, wj) in w.iter().enumerate() {
+            let r = normal(j) - nb;
+            for (x, wja) in rhs.iter_mut().zip(wj) {
+                *x += *wja * r;
+            }
+        }
+        for axis in 0..3 {
+            let m = cholesky_solve(&chol, k, rhs.iter().map(|r| r[axis]).collect());
+            for (a, x) in m.into_iter().enumerate() {
+                deltas[a][i][axis] = x as f32;
+            }
+        }
+        base[i] = nb.as_vec3();
+    }
+    (base, deltas)
+}
+
+fn quantize_i8(x: Vec3) -> [i8; 3] {
+    x.to_array()
+        .map(|c| (c.clamp(-1.0, 1.0) * I8 as f32).round() as i8)
+}
+
+fn dequantize_i8(q: [i8; 3]) -> Vec3 {
+    Vec3::from_array(q.map(|c| (c as f32 / I8 as f32).max(-1.0)))
+}
+
+/// Largest and mean angle (degrees) between the played normals and the baked ones.
+fn normal_errors(
+    frames: &RenderFrames,
+    c: &Candidate,
+    keys: &[usize],
+    interpolation: Interpolation,
+    base: &[Vec3],
+    deltas: &[Vec<Vec3>],
+) -> (f64, f64) {
+    let (mut worst, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
+    for j in 0..frames.frame_count() {
+        let w = played_weights(c, keys, j, interpolation);
+        for (i, want) in frames.normals(j).iter().enumerate() {
+            let mut m = base[i];
+            for (d, wk) in deltas.iter().zip(&w) {
+                m += *wk * d[i];
+            }
+            let cos = m.normalize_or_zero().as_dvec3().dot(want.as_dvec3());
+            let angle = cos.clamp(-1.0, 1.0).acos().to_degrees();
+            worst = worst.max(angle);
+            sum += angle;
+            n += 1;
+        }
+    }
+    (worst, sum / n.max(1) as f64)
+}
+
+/// Writes the chosen candidate.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the figures gathered while choosing"
+)]
+fn write(
+    path: &Path,
+    mesh: &Mesh,
+    frames: &RenderFrames,
+    options: &MorphOptions,
+    basis: &BasisOptions,
+    c: Candidate,
+    keys: Vec<usize>,
+    (max_error, worst_frame): (f64, usize),
+    projection_error: f64,
+    singular_values: Vec<f64>,
+) -> Result<EncodedBasis> {
+    let mut b = GltfBuilder::new();
+    let mut bytes = PartBytes::default();
+    let array = Some(json::buffer::Target::ArrayBuffer);
+    let mut stats = CacheStats {
+        targets: c.k,
+        frames: frames.frame_count(),
+        kept_frames: keys.clone(),
+        max_interpolation_error: max_error,
+        sparse_accessors: 0,
+        dense_accessors: 0,
+        target_bytes: 0,
+    };
+
+    // Normals: fitted; when quantised, the base as int8 and each target's deltas as int8 when
+    // every component fits in [-1, 1] (else f32, sparse where smaller).
+    let normals = options.normals.then(|| {
+        let (nb, nd) = fit_normals(frames, &c, c.k);
+        if !c.quantized {
+            let n = nd.len();
+            return (nb, None, nd, vec![None; n]);
+        }
+        let nb_q: Vec<[i8; 3]> = nb.iter().map(|x| quantize_i8(*x)).collect();
+        let nb_s = nb_q.iter().map(|x| dequantize_i8(*x)).collect();
+        // Each target's deltas as int8 where every component fits in [-1, 1]; the others as
+        // int8 clamped when that costs little (measured), else f32.
+        let fits: Vec<bool> = nd
+            .iter()
+            .map(|t| t.iter().all(|x| x.abs().max_element() <= 1.0))
+            .collect();
+        let encode = |clamp: bool| {
+            let (mut nd_s, mut nd_q) = (Vec::new(), Vec::new());
+            for (t, fit) in nd.iter().zip(&fits) {
+                if *fit || clamp {
+                    let q: Vec<[i8; 3]> = t.iter().map(|x| quantize_i8(*x)).collect();
+                    nd_s.push(q.iter().map(|x| dequantize_i8(*x)).collect::<Vec<_>>());
+                    nd_q.push(Some(q));
+                } else {
+                    nd_s.push(t.clone());
+                    nd_q.push(None);
+                }
+            }
+            (nd_s, nd_q)
+        };
+        let (nd_s, nd_q) = encode(false);
+        if fits.iter().all(|f| *f) {
+            return (nb_s, Some(nb_q), nd_s, nd_q);
+        }
+        let exact = normal_errors(frames, &c, &keys, options.interpolation, &nb_s, &nd_s);
+        let (cd_s, cd_q) = encode(true);
+        let clamped = normal_errors(frames, &c, &keys, options.interpolation, &nb_s, &cd_s);
+        if basis.quantize == QuantizeMode::On
+            || (clamped.0 <= exact.0 + CLAMP_MAX_DEGREES
+                && clamped.1 <= exact.1 + CLAMP_MEAN_DEGREES)
+        {
+            (nb_s, Some(nb_q), cd_s, cd_q)
+        } else {
+            (nb_s, Some(nb_q), nd_s, nd_q)
+        }
+    });
+    let normals_i8 = normals.as_ref().is_some_and(|n| n.1.is_some());
+    let int8_normal_targets = normals
+        .as_ref()
+        .map_or(0, |n| n.3.iter().filter(|q| q.is_some()).count());
+    let (max_normal, mean_normal) = match &normals {
+        Some((nb, _, nd, _)) => normal_errors(frames, &c, &keys, options.interpolation, nb, nd),
+        None => (0.0, 0.0),
+    };
+
+    // Base primitive.
+    let start = b.buffer_len();
+    let mut attributes = std::collections::BTreeMap::new();
+    let positions = if c.quantized {
+        i16_vec3(&mut b, &c.base_q, array, true)
+    } else {
+        b.vec3(&c.base, array, true)
+    };
+    attributes.insert(Valid(json::mesh::Semantic::Positions), positions);
+    if let Some((nb, q, _, _)) = &normals {
+        let n = match q {
+            Some(nb_q) => i8_vec3(&mut b, nb_q, false),
+            None => b.vec3(nb, array, false),
+        };
+        attributes.insert(Valid(json::mesh::Semantic::Normals), n);
+    }
+    if mesh.has_uvs() {
+        let uvs: Vec<[f32; 2]> = mesh
+            .render_vertices
+            .iter()
+            .map(|v| flip_v(v.uv.unwrap_or_default()))
+            .collect();
+        attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), b.vec2(&uvs));
+    }
+    bytes.base = (b.buffer_len() - start) as u64;
+    let start = b.buffer_len();
+    let indices: Vec<u32> = mesh.render_triangles.iter().flatten().copied().collect();
+    let indices = b.indices(&indices);
+    bytes.indices = (b.buffer_len() - start) as u64;
+
+    // Targets.
+    let mut targets = Vec::with_capacity(c.k);
+    for t in 0..c.k {
+        let start = b.buffer_len();
+        let positions = if c.quantized {
+            stats.dense_accessors += 1;
+            match &c.deltas_q[t] {
+                StoredDelta::I16(q) => i16_vec3(&mut b, q, array, true),
+                StoredDelta::I8(q) => i8_vec3(&mut b, q, true),
+            }
+        } else {
+            let (a, e) = delta_accessor(&mut b, &c.deltas[t], options.sparse, true);
+            count(&mut stats, e);
+            a
+        };
+        bytes.target_positions += (b.buffer_len() - start) as u64;
+        let start = b.buffer_len();
+        let normals = normals.as_ref().map(|(_, _, nd, nd_q)| match &nd_q[t] {
+            Some(q) => {
+                stats.dense_accessors += 1;
+                i8_vec3(&mut b, q, false)
+            }
+            None => {
+                let (a, e) = delta_accessor(&mut b, &nd[t], options.sparse, false);
+                count(&mut stats, e);
+                a
+            }
+        });
+        bytes.target_normals += (b.buffer_len() - start) as u64;
+        targets.push(json::mesh::MorphTarget {
+            positions: Some(positions),
+            normals,
+            tangents: None,
+        });
+    }
+    stats.target_bytes = bytes.target_positions + bytes.target_normals;
+    let names: Vec<String> = (1..=c.k).map(|t| format!("basis_{t:02}")).collect();
+    let material = cloth_material(&mut b);
+    let to_raw = |value: serde_json::Value| {
+        serde_json::value::to_raw_value(&value).map_err(|error| Error::Json {
+            path: path.into(),
+            error,
+        })
+    };
+    let gmesh = b.root.push(json::Mesh {
+        name: Some(options.name.clone()),
+        primitives: vec![json::mesh::Primitive {
+            targets: Some(targets),
+            ..primitive(
+                attributes,
+                Some(indices),
+                material,
+                json::mesh::Mode::Triangles,
+            )
+        }],
+        weights: Some(c.weights[0].clone()),
+        extensions: None,
+        extras: Some(to_raw(serde_json::json!({ "targetNames": names }))?),
+    });
+    let node = b.root.push(json::Node {
+        name: Some(options.name.clone()),
+        mesh: Some(gmesh),
+        translation: c.quantized.then(|| c.translation.as_vec3().to_array()),
+        scale: c.quantized.then_some([c.scale as f32; 3]),
+        ..Default::default()
+    });
+    let start = b.buffer_len();
+    let mut nodes = vec![node];
+    nodes.extend(push_static_meshes(&mut b, &options.static_meshes));
+    bytes.statics = (b.buffer_len() - start) as u64;
+    let scene = b.root.push(json::Scene {
+        name: Some("scenebake".into()),
+        nodes,
+        extensions: None,
+        extras: Default::default(),
+    });
+    b.root.scene = Some(scene);
+
+    // Weights: one key per kept frame at its true time.
+    let start = b.buffer_len();
+    let times: Vec<f32> = keys
+        .iter()
+        .map(|&k| (k as f64 / options.fps) as f32)
+        .collect();
+    let weights: Vec<f32> = keys.iter().flat_map(|&k| c.weights[k].clone()).collect();
+    let input = b.scalars(&times, true);
+    let output = b.scalars(&weights, false);
+    let interpolation = match options.interpolation {
+        Interpolation::Linear => json::animation::Interpolation::Linear,
+        Interpolation::Step => json::animation::Interpolation::Step,
+    };
+    b.root.push(json::Animation {
+        name: Some(options.name.clone()),
+        channels: vec![channel(
+            0,
+            node,
+            json::animation::Property::MorphTargetWeights,
+        )],
+        samplers: vec![sampler(input, output, interpolation)],
+        extensions: None,
+        extras: Default::default(),
+    });
+    bytes.animation = (b.buffer_len() - start) as u64;
+    if c.quantized || normals_i8 {
+        b.root.extensions_used.push(KHR_MESH_QUANTIZATION.into());
+        b.root
+            .extensions_required
+            .push(KHR_MESH_QUANTIZATION.into());
+    }
+    let bin = b.buffer_len().next_multiple_of(4) as u64;
+    let files = b.encode(path)?;
+    let total: u64 = files.iter().map(|(_, f)| f.len() as u64).sum();
+    bytes.json = total - bin;
+    let quantization = Quantization {
+        positions: if c.quantized { "int16" } else { "float" }.into(),
+        normals: match (&normals, normals_i8) {
+            (None, _) => "none",
+            (Some(_), true) => "int8",
+            (Some(_), false) => "float",
+        }
+        .into(),
+        int16_targets: c
+            .deltas_q
+            .iter()
+            .filter(|d| matches!(d, StoredDelta::I16(_)))
+            .count(),
+        int8_targets: c
+            .deltas_q
+            .iter()
+            .filter(|d| matches!(d, StoredDelta::I8(_)))
+            .count(),
+        int8_normal_targets,
+        node_scale: c.scale,
+        node_translation: c.translation.to_array(),
+    };
+    Ok(EncodedBasis {
+        morph: EncodedMorph { files, stats },
+        basis: BasisStats {
+            requested: basis.size,
+            targets: c.k,
+            tolerance: basis.tolerance,
+            max_error,
+            worst_frame,
+            projection_error,
+            max_normal_error_degrees: max_normal,
+            mean_normal_error_degrees: mean_normal,
+            singular_values,
+            quantization,
+            bytes,
+        },
+    })
+}
+
+fn count(stats: &mut CacheStats, e: DeltaEncoding) {
+    match e {
+        DeltaEncoding::Sparse => stats.sparse_accessors += 1,
+        DeltaEncoding::Dense => stats.dense_accessors += 1,
+    }
+}
+
+/// Normalised int16 VEC3 vertex attribute, each element padded to 8 bytes (stride 8); `min_max`
+/// writes bounds in the stored integer values.
+fn i16_vec3(
+    b: &mut GltfBuilder,
+    data: &[[i16; 3]],
+    target: Option<json::buffer::Target>,
+    min_max: bool,
+) -> json::Index<json::Accessor> {
+    let bytes: Vec<u8> = data
+        .iter()
+        .flat_map(|v| {
+            let mut e = [0u8; 8];
+            for (c, x) in v.iter().enumerate() {
+                e[2 * c..2 * c + 2].copy_from_slice(&x.to_le_bytes());
+            }
+            e
+        })
+        .collect();
+    let bounds =
+        min_max.then(|| super::gltf_doc::bounds_f32(data.iter().map(|v| v.map(|c| c as f32))));
+    strided(
+        b,
+        &bytes,
+        data.len(),
+        8,
+        json::accessor::ComponentType::I16,
+        target,
+        bounds,
+    )
+}
+
+/// Normalised int8 VEC3 vertex attribute, each element padded to 4 bytes (stride 4); `min_max`
+/// writes bounds in the stored integer values.
+fn i8_vec3(b: &mut GltfBuilder, data: &[[i8; 3]], min_max: bool) -> json::Index<json::Accessor> {
+    let bytes: Vec<u8> = data
+        .iter()
+        .flat_map(|v| [v[0] as u8, v[1] as u8, v[2] as u8, 0])
+        .collect();
+    strided(
+        b,
+        &bytes,
+        data.len(),
+        4,
+        json::accessor::ComponentType::I8,
+        Some(json::buffer::Target::ArrayBuffer),
+        min_max.then(|| super::gltf_doc::bounds_f32(data.iter().map(|v| v.map(|c| c as f32)))),
+    )
+}
+
+/// A normalised VEC3 accessor over a view with `stride`.
+fn strided(
+    b: &mut GltfBuilder,
+    bytes: &[u8],
+    count: usize,
+    stride: usize,
+    component: json::accessor::ComponentType,
+    target: Option<json::buffer::Target>,
+    bounds: Option<(Vec<f32>, Vec<f32>)>,
+) -> json::Index<json::Accessor> {
+    let index = b.accessor(
+        bytes,
+        count,
+        json::accessor::Type::Vec3,
+        component,
+        target,
+        bounds,
+        true,
+    );
+    let accessor = &b.root.accessors[index.value()];
+    let view = accessor.buffer_view.expect("a dense accessor has a view");
+    b.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(stride));
+    index
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn basis_size_parses() {
+        assert_eq!("auto".parse::<BasisSize>().unwrap(), BasisSize::Auto);
+        assert_eq!("12".parse::<BasisSize>().unwrap(), BasisSize::Fixed(12));
+        let e = "0".parse::<BasisSize>().unwrap_err().to_string();
+        assert!(e.contains("--basis"), "{e}");
+        assert!("x".parse::<BasisSize>().is_err());
+    }
+
+    #[test]
+    fn cholesky_solves_a_small_system() {
+        let a = [4.0, 2.0, 2.0, 3.0];
+        let l = cholesky(&a, 2);
+        let x = cholesky_solve(&l, 2, vec![2.0, 5.0]);
+        // 4x + 2y = 2, 2x + 3y = 5 → x = -0.5, y = 2.
+        assert!(
+            (x[0] + 0.5).abs() < 1e-9 && (x[1] - 2.0).abs() < 1e-9,
+            "{x:?}"
+        );
+    }
+
+    #[test]
+    fn int16_round_trip_is_within_half_a_step() {
+        for x in [-1.0, -0.3, 0.0, 0.123456, 1.0] {
+            let q = quantize_i16(DVec3::splat(x));
+            let back = dequantize_i16(q).x as f64;
+            assert!((back - x).abs() <= 0.5 / I16 + 1e-7, "{x} -> {back}");
+        }
+    }
+}

@@ -1,0 +1,419 @@
+//! The traps a new user hit in a trial run (issue 13), each closed with the exact message the
+//! command line now prints.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn crate_path(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+fn s(p: &Path) -> String {
+    p.to_string_lossy().into_owned()
+}
+
+/// Runs scenebake in `dir`; returns (exit code, stdout, stderr).
+fn run(dir: &Path, args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Asserts a failure (exit 1) whose stderr is exactly `message` plus a newline, nothing written.
+#[track_caller]
+fn fails_exactly(dir: &Path, args: &[&str], message: &str) {
+    let before: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let (code, _, err) = run(dir, args);
+    assert_eq!(code, 1, "{args:?}: {err}");
+    assert_eq!(err, format!("{message}\n"), "{args:?}");
+    let after: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(before, after, "{args:?} wrote something");
+}
+
+#[test]
+fn options_that_do_not_apply_to_the_input_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = s(&crate_path("meshes/plane_30x30.obj"));
+    let glb = s(&crate_path("meshes/Fox.glb"));
+    fails_exactly(
+        dir.path(),
+        &["cloth", &obj, "--mesh", "cloth", "-o", "x.glb"],
+        &format!("error: invalid value for --mesh: picks a mesh of a .gltf/.glb input, and {obj} is not one (for an OBJ, --object NAME picks an object or group)"),
+    );
+    fails_exactly(
+        dir.path(),
+        &["cloth", &glb, "--object", "cloth", "-o", "x.glb"],
+        &format!("error: invalid value for --object: picks an object or group of an .obj input, and {glb} is not one (for a glTF, --mesh NAME picks a mesh)"),
+    );
+    fails_exactly(
+        dir.path(),
+        &["cloth", "--preset", "lab-cloth", "--object", "cloth", "-o", "x.glb"],
+        "error: invalid value for --object: picks part of an input file; the lab-cloth preset has none",
+    );
+}
+
+#[test]
+fn an_absurd_frame_count_is_refused_before_baking() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = s(&crate_path("meshes/plane_30x30.obj"));
+    // 961 vertices × 24 bytes (position and normal) a frame: 4 GiB hold 186,219 frames.
+    fails_exactly(
+        dir.path(),
+        &["cloth", &obj, "--frames", "1000000000", "-o", "x.glb"],
+        "error: invalid value for --frames: 1000000000: 1000000000 frames of 961 vertices need about 23.1 TB in memory and in the output, over the 4.3 GB a GLB can hold; at most 186218 frames fit (--keyframe-tolerance shrinks the file, not the bake)",
+    );
+    assert_eq!(4_294_967_295u64 / (961 * 24), 186_219);
+}
+
+#[test]
+fn scene_files_empty_or_misspelt_are_errors_with_a_suggestion() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("empty.toml"), "# nothing yet\n").unwrap();
+    fails_exactly(
+        dir.path(),
+        &["run", "empty.toml"],
+        "error: empty.toml: no jobs: a scene lists [[cloth]] and [[ik]] tables (see scenes/demo.toml)",
+    );
+    std::fs::write(
+        dir.path().join("typo.toml"),
+        "[[cloth]]\nname = \"lab\"\npreset = \"lab-cloth\"\nstifness = 3\noutput = \"a.glb\"\n",
+    )
+    .unwrap();
+    let (code, _, err) = run(dir.path(), &["run", "typo.toml"]);
+    assert_eq!(code, 1);
+    assert!(
+        err.starts_with("error: typo.toml: [[cloth]] job 1 (`lab`): unknown key `stifness` (did you mean `stiffness`? keys: bend-stiffness, collider,"),
+        "{err}"
+    );
+    std::fs::write(
+        dir.path().join("kind.toml"),
+        "[[clth]]\npreset = \"lab-cloth\"\n",
+    )
+    .unwrap();
+    fails_exactly(
+        dir.path(),
+        &["run", "kind.toml"],
+        "error: kind.toml: unknown table `clth` (did you mean [[cloth]]? jobs are [[cloth]], [[ik]])",
+    );
+    // Far from every key: no suggestion.
+    std::fs::write(
+        dir.path().join("far.toml"),
+        "[[cloth]]\npreset = \"lab-cloth\"\nzzzzzz = 1\noutput = \"a.glb\"\n",
+    )
+    .unwrap();
+    let (_, _, err) = run(dir.path(), &["run", "far.toml"]);
+    assert!(err.contains("unknown key `zzzzzz` (keys: "), "{err}");
+}
+
+#[test]
+fn warnings_and_each_file_size_are_printed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--frames",
+            "3",
+            "--solver",
+            "newton",
+            "--max-newton",
+            "1",
+            "--tolerance",
+            "1e-15",
+            "-o",
+            "w.glb",
+            "--vat",
+            "w.exr",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 2, "{err}");
+    let size = |f: &str| {
+        let n = std::fs::metadata(dir.path().join(f)).unwrap().len();
+        match n {
+            n if n >= 1 << 20 => format!("{:.1} MiB", n as f64 / (1u64 << 20) as f64),
+            n if n >= 1 << 10 => format!("{:.1} KiB", n as f64 / 1024.0),
+            n => format!("{n} B"),
+        }
+    };
+    assert!(
+        lines[0].ends_with(&format!(
+            "; wrote w.glb ({}), w.exr ({}), w.normals.exr ({}), w.json ({})",
+            size("w.glb"),
+            size("w.exr"),
+            size("w.normals.exr"),
+            size("w.json")
+        )),
+        "{}",
+        lines[0]
+    );
+    assert_eq!(
+        lines[1],
+        "warning: lab-cloth (resolution 10): 3 frames stopped at the iteration cap before the tolerance (see unconverged_frames; raise --max-newton or --substeps)"
+    );
+}
+
+/// RiggedSimple with 40 vertices' weights halved, in `dir` as `halved.gltf`.
+fn halved_rig(dir: &Path) -> PathBuf {
+    let src = crate_path("meshes/RiggedSimple.gltf");
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&src).unwrap()).unwrap();
+    let acc = &json["accessors"][json["meshes"][0]["primitives"][0]["attributes"]["WEIGHTS_0"]
+        .as_u64()
+        .unwrap() as usize];
+    let view = &json["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+    let offset = view["byteOffset"].as_u64().unwrap() as usize
+        + acc["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let stride = view["byteStride"].as_u64().unwrap_or(16) as usize;
+    let mut bin = std::fs::read(crate_path("meshes/RiggedSimple0.bin")).unwrap();
+    for v in 0..40 {
+        for c in 0..4 {
+            let at = offset + v * stride + c * 4;
+            let w = f32::from_le_bytes(bin[at..at + 4].try_into().unwrap()) * 0.5;
+            bin[at..at + 4].copy_from_slice(&w.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.join("RiggedSimple0.bin"), bin).unwrap();
+    std::fs::copy(&src, dir.join("halved.gltf")).unwrap();
+    dir.join("halved.gltf")
+}
+
+#[test]
+fn inspect_reports_weight_sums_and_a_node_cycle() {
+    let dir = tempfile::tempdir().unwrap();
+    halved_rig(dir.path());
+    let (code, out, err) = run(dir.path(), &["inspect", "halved.gltf"]);
+    assert_eq!(code, 1, "{out}");
+    assert!(
+        out.contains("    FAILED: meshes[0].primitives[0] skin weights sum to 1 (40 of 160 vertices sum to 0.500–0.500; `scenebake ik --rig` renormalises them)\n"),
+        "{out}"
+    );
+    assert!(
+        err.starts_with("error: halved.gltf: 1 invariant check(s) failed: "),
+        "{err}"
+    );
+
+    // The rig baked: renormalised, with a warning on the terminal; the output inspects clean.
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "ik",
+            "--rig",
+            "halved.gltf",
+            "--chain",
+            "Bone..Bone.001",
+            "--curve",
+            "circle",
+            "-o",
+            "out.glb",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.ends_with("warning: out.glb: halved.gltf: renormalised the skin weights of 40 vertices (they summed to 0.500–0.500, glTF requires 1)\n"),
+        "{err}"
+    );
+    let (code, out, _) = run(dir.path(), &["inspect", "out.glb"]);
+    assert_eq!(code, 0, "{out}");
+    assert!(out.contains("  checks: "), "{out}");
+
+    let cycle = s(&crate_path("tests/fixtures/node_cycle.gltf"));
+    let (code, out, err) = run(dir.path(), &["inspect", &cycle]);
+    assert_eq!(code, 1);
+    assert!(
+        out.contains(
+            "      #0 hip\n        #1 knee\n          #2 (unnamed)\n            #1 (again: the hierarchy loops here)\n"
+        ),
+        "{out}"
+    );
+    assert!(
+        out.contains("    FAILED: nodes: the hierarchy has no cycle (found #1 → #2 → #1)\n"),
+        "{out}"
+    );
+    assert_eq!(
+        err,
+        format!("error: {cycle}: 2 invariant check(s) failed: nodes: every node has at most one parent (#1 is a child of #0 and #2); nodes: the hierarchy has no cycle (found #1 → #2 → #1)\n")
+    );
+}
+
+#[test]
+fn rig_joints_are_listed_with_their_index_and_blenders_names_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let fox = s(&crate_path("meshes/Fox.glb"));
+    let (code, out, _) = run(dir.path(), &["inspect", &fox]);
+    assert_eq!(code, 0);
+    assert!(
+        out.contains("  skin #0: 24 joints (_rootJoint #2, b_Root_00 #3, b_Hip_01 #4,"),
+        "{out}"
+    );
+    assert!(
+        out.contains(
+            "              #5 b_Spine01_02 [joint]\n                #6 b_Spine02_03 [joint]\n"
+        ),
+        "{out}"
+    );
+    // SimpleSkin's nodes have no names: Blender shows them as Node_N, which --chain accepts.
+    let simple = s(&crate_path("meshes/SimpleSkin.gltf"));
+    let (_, _, err) = run(
+        dir.path(),
+        &[
+            "ik",
+            "--rig",
+            &simple,
+            "--chain",
+            "Node_1..Node_2",
+            "--curve",
+            "square",
+            "-o",
+            "s.glb",
+        ],
+    );
+    // The chain is found (and then refused for its zero-length bone, as with #1..#2).
+    assert!(err.contains("#2") && err.contains("length 0"), "{err}");
+    let (_, _, err) = run(
+        dir.path(),
+        &[
+            "ik",
+            "--rig",
+            &fox,
+            "--chain",
+            "Node_5..b_Head_05",
+            "--curve",
+            "square",
+            "-o",
+            "s.glb",
+        ],
+    );
+    assert_eq!(
+        err,
+        format!("error: {fox}: --chain: no node named `Node_5` (use a node name, `#N` for node N, quoted in a shell as in '#13..#15', or Blender's `Node_N`; `scenebake inspect {fox}` lists them)\n")
+    );
+}
+
+#[test]
+fn open_says_when_blender_is_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("a.glb"), b"glTF").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+        .args(["open", "a.glb"])
+        .current_dir(dir.path())
+        .env("PATH", dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "error: blender is not on PATH: install Blender 3.4 or later (https://www.blender.org/download/, or `apt install blender`), or give its executable with --blender PATH\n"
+    );
+    let (code, _, err) = run(
+        dir.path(),
+        &["open", "a.glb", "--blender", "/no/such/blender"],
+    );
+    assert_eq!(code, 1);
+    assert_eq!(
+        err,
+        "error: invalid value for --blender: /no/such/blender: no such file (give the path of the Blender executable)\n"
+    );
+    let (_, _, err) = run(dir.path(), &["open", "missing.glb"]);
+    assert_eq!(err, "error: missing.glb: no such file\n");
+}
+
+/// A Z-up OBJ (Bullet's cloth_z_up, a sheet in z = 0) with `--up z` arrives lying in y = 0:
+/// the glTF's base positions are the file's `v` lines turned (x, y, z) → (x, z, −y).
+#[test]
+fn up_z_turns_a_z_up_input_to_y_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = crate_path("meshes/cloth_z_up.obj");
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth",
+            &s(&obj),
+            "--up",
+            "z",
+            "--frames",
+            "2",
+            "-o",
+            "up.glb",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    let (doc, buffers, _) = gltf::import(dir.path().join("up.glb")).unwrap();
+    let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+    let got: Vec<[f32; 3]> = prim
+        .reader(|b| Some(&buffers[b.index()]))
+        .read_positions()
+        .unwrap()
+        .collect();
+    let key = |p: [f64; 3]| p.map(|c| (c * 1e5).round() as i64);
+    let mut want: Vec<[i64; 3]> = std::fs::read_to_string(&obj)
+        .unwrap()
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            key([v[0], v[2], -v[1]])
+        })
+        .collect();
+    want.sort();
+    want.dedup();
+    let mut got_keys: Vec<[i64; 3]> = got.iter().map(|p| key(p.map(f64::from))).collect();
+    got_keys.sort();
+    got_keys.dedup();
+    assert_eq!(got_keys, want);
+    assert!(
+        got.iter().all(|p| p[1].abs() < 1e-6),
+        "the sheet lies in y = 0"
+    );
+    fails_exactly(
+        dir.path(),
+        &["cloth", "--preset", "lab-cloth", "--up", "z", "-o", "x.glb"],
+        "error: invalid value for --up: places an input file; the lab-cloth preset keeps the labs' coordinates",
+    );
+}
+
+/// Ctrl-C in `run` after a job finished: the message names the file that job replaced.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_names_the_outputs_it_already_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("two.toml"),
+        "[[cloth]]\nname = \"quick\"\npreset = \"lab-cloth\"\nframes = 2\noutput = \"quick.glb\"\n\n[[cloth]]\nname = \"long\"\npreset = \"lab-cloth\"\nresolution = 150\nframes = 5000\noutput = \"long.glb\"\n",
+    )
+    .unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+        .args(["-q", "run", "two.toml"])
+        .current_dir(dir.path())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    assert!(Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130));
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "\ninterrupted: the job being baked wrote nothing, but finished jobs of this run replaced 1 file: quick.glb\n"
+    );
+    assert!(!dir.path().join("long.glb").exists());
+}

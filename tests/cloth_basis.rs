@@ -1,0 +1,389 @@
+//! Morph-basis caches (`--basis`, `--max-targets`, `--quantize`): the written file is reloaded
+//! with the `gltf` crate, its accessors decoded here from the raw bytes (component type,
+//! normalisation, stride, sparse), the frames played back with the node transform and compared
+//! with a reference simulation run through the library directly.
+
+mod morph_reader;
+
+use std::path::Path;
+
+use morph_reader::{reference, reference_positions};
+use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothSource};
+use scenebake::export::{BasisSize, QuantizeMode};
+use scenebake::glam::{Mat4, Vec3};
+
+/// Slack for f32 rounding between the writer's measurement and this player.
+const ROUNDING: f32 = 2e-6;
+
+fn lab_job(out: &Path, frames: usize) -> ClothJob {
+    let mut job = ClothJob::new(ClothSource::LabCloth { resolution: 12 }, out.to_path_buf());
+    job.frames = Some(frames);
+    job
+}
+
+/// A basis cache decoded from the file.
+struct Played {
+    transform: Mat4,
+    base: Vec<Vec3>,
+    deltas: Vec<Vec<Vec3>>,
+    times: Vec<f32>,
+    weights: Vec<f32>,
+    default_weights: Vec<f32>,
+    extensions_required: Vec<String>,
+    position_type: gltf::accessor::DataType,
+}
+
+impl Played {
+    fn k(&self) -> usize {
+        self.deltas.len()
+    }
+
+    /// World positions at time `t`: weights sampled linearly, base + Σ w·Δ, node transform.
+    fn positions_at(&self, t: f32) -> Vec<Vec3> {
+        let k = self.k();
+        let row = |i: usize| &self.weights[i * k..(i + 1) * k];
+        let i = self.times.partition_point(|&x| x <= t).max(1) - 1;
+        let w: Vec<f32> = if i + 1 >= self.times.len() {
+            row(i).to_vec()
+        } else {
+            let s = ((t - self.times[i]) / (self.times[i + 1] - self.times[i])).clamp(0.0, 1.0);
+            row(i)
+                .iter()
+                .zip(row(i + 1))
+                .map(|(a, b)| a + s * (b - a))
+                .collect()
+        };
+        self.base
+            .iter()
+            .enumerate()
+            .map(|(v, b)| {
+                let mut p = *b;
+                for (d, wk) in self.deltas.iter().zip(&w) {
+                    p += *wk * d[v];
+                }
+                self.transform.transform_point3(p)
+            })
+            .collect()
+    }
+}
+
+/// Decodes a VEC3 accessor from the raw bytes: float, or (normalised) integers, with stride and
+/// sparse substitution.
+fn read_vec3(a: &gltf::Accessor<'_>, buffers: &[gltf::buffer::Data]) -> Vec<Vec3> {
+    use gltf::accessor::DataType;
+    assert_eq!(a.dimensions(), gltf::accessor::Dimensions::Vec3);
+    let size = a.data_type().size();
+    let decode = |bytes: &[u8]| -> f32 {
+        let raw = match a.data_type() {
+            DataType::F32 => return f32::from_le_bytes(bytes[..4].try_into().unwrap()),
+            DataType::I16 => i16::from_le_bytes([bytes[0], bytes[1]]) as f32,
+            DataType::U16 => u16::from_le_bytes([bytes[0], bytes[1]]) as f32,
+            DataType::I8 => bytes[0] as i8 as f32,
+            DataType::U8 => bytes[0] as f32,
+            DataType::U32 => panic!("u32 is not a vertex attribute type"),
+        };
+        if !a.normalized() {
+            return raw;
+        }
+        match a.data_type() {
+            DataType::I16 => (raw / 32767.0).max(-1.0),
+            DataType::U16 => raw / 65535.0,
+            DataType::I8 => (raw / 127.0).max(-1.0),
+            DataType::U8 => raw / 255.0,
+            _ => unreachable!(),
+        }
+    };
+    let element = |data: &[u8], at: usize| -> Vec3 {
+        Vec3::new(
+            decode(&data[at..]),
+            decode(&data[at + size..]),
+            decode(&data[at + 2 * size..]),
+        )
+    };
+    let mut out = vec![Vec3::ZERO; a.count()];
+    if let Some(view) = a.view() {
+        let data = &buffers[view.buffer().index()].0;
+        let stride = view.stride().unwrap_or(3 * size);
+        let start = view.offset() + a.offset();
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = element(data, start + i * stride);
+        }
+    }
+    if let Some(sparse) = a.sparse() {
+        let iv = sparse.indices().view();
+        let idata = &buffers[iv.buffer().index()].0;
+        let istart = iv.offset() + sparse.indices().offset();
+        let vv = sparse.values().view();
+        let vdata = &buffers[vv.buffer().index()].0;
+        let vstart = vv.offset() + sparse.values().offset();
+        for n in 0..sparse.count() {
+            let index = match sparse.indices().index_type() {
+                gltf::accessor::sparse::IndexType::U8 => idata[istart + n] as usize,
+                gltf::accessor::sparse::IndexType::U16 => {
+                    u16::from_le_bytes([idata[istart + 2 * n], idata[istart + 2 * n + 1]]) as usize
+                }
+                gltf::accessor::sparse::IndexType::U32 => u32::from_le_bytes(
+                    idata[istart + 4 * n..istart + 4 * n + 4]
+                        .try_into()
+                        .unwrap(),
+                ) as usize,
+            };
+            out[index] = element(vdata, vstart + n * 3 * size);
+        }
+    }
+    out
+}
+
+fn load(path: &Path) -> Played {
+    // The gltf crate validates extensionsRequired against the extensions it implements, which
+    // do not include KHR_mesh_quantization: parse without that check, decode the bytes here.
+    let bytes = std::fs::read(path).unwrap();
+    let gltf =
+        gltf::Gltf::from_slice_without_validation(&bytes).expect("parse with the gltf crate");
+    let buffers = gltf::import_buffers(&gltf.document, path.parent(), gltf.blob.clone()).unwrap();
+    let doc = gltf.document;
+    let node = doc.nodes().next().unwrap();
+    let mesh = node.mesh().unwrap();
+    let prim = mesh.primitives().next().unwrap();
+    let pos = prim.get(&gltf::Semantic::Positions).unwrap();
+    let base = read_vec3(&pos, &buffers);
+    let deltas = prim
+        .morph_targets()
+        .map(|t| read_vec3(&t.positions().unwrap(), &buffers))
+        .collect();
+    let anim = doc.animations().next().unwrap();
+    let channel = anim.channels().next().unwrap();
+    assert_eq!(
+        channel.sampler().interpolation(),
+        gltf::animation::Interpolation::Linear
+    );
+    let r = channel.reader(|b| Some(&buffers[b.index()]));
+    let times: Vec<f32> = r.read_inputs().unwrap().collect();
+    let weights: Vec<f32> = match r.read_outputs().unwrap() {
+        gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => w.into_f32().collect(),
+        _ => panic!("weights output"),
+    };
+    Played {
+        transform: Mat4::from_cols_array_2d(&node.transform().matrix()),
+        base,
+        deltas,
+        times,
+        weights,
+        default_weights: mesh.weights().unwrap_or_default().to_vec(),
+        extensions_required: doc.extensions_required().map(str::to_owned).collect(),
+        position_type: pos.data_type(),
+    }
+}
+
+/// Largest distance between the file played at every baked frame and the reference.
+fn worst_error(job: &ClothJob, played: &Played, fps: f64) -> (f32, usize) {
+    let (mesh, sim) = reference(job);
+    let mut worst = (0.0f32, 0);
+    for k in 0..sim.frame_count() {
+        let got = played.positions_at((k as f64 / fps) as f32);
+        let want = reference_positions(&mesh, &sim, k);
+        let d = got
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0f32, f32::max);
+        if d > worst.0 {
+            worst = (d, k);
+        }
+    }
+    worst
+}
+
+#[test]
+fn auto_basis_plays_every_frame_within_the_tolerance_with_few_targets() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab.glb");
+    let frames = 120;
+    let tolerance = 1e-3;
+    let mut job = lab_job(&out, frames);
+    job.basis = Some(BasisSize::Auto);
+    job.basis_tolerance = Some(tolerance);
+    job.quantize = Some(QuantizeMode::Off);
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let basis = report.cache.basis.as_ref().expect("basis stats");
+    let played = load(&out);
+    assert_eq!(played.k(), basis.targets);
+    assert_eq!(report.cache.stats.targets, basis.targets);
+    assert!(
+        basis.targets >= 2 && basis.targets < frames / 4,
+        "a slow cloth needs few basis shapes: K = {}",
+        basis.targets
+    );
+    assert_eq!(played.times.len(), frames + 1, "one key per frame");
+    assert!(played.extensions_required.is_empty());
+    assert_eq!(played.position_type, gltf::accessor::DataType::F32);
+    // Blender clamps shape-key values to [0, 1] unless told otherwise: every weight is inside.
+    assert!(played.weights.iter().all(|w| (0.0..=1.0).contains(w)));
+    // The default weights are frame 0's: a player without animation shows the initial pose.
+    assert_eq!(
+        played.default_weights,
+        played.weights[..played.k()].to_vec()
+    );
+
+    let (worst, _) = worst_error(&job, &played, report.fps);
+    assert!(worst <= tolerance as f32 + ROUNDING, "{worst} m off");
+    assert!(
+        (worst - basis.max_error as f32).abs() < 1e-5,
+        "the report's error is the one measured: {worst} vs {}",
+        basis.max_error
+    );
+    // One target fewer is not enough (auto picks the smallest K).
+    assert!(basis.projection_error <= tolerance);
+    let mut fewer = job.clone();
+    fewer.basis = Some(BasisSize::Fixed(basis.targets - 1));
+    fewer.output = dir.path().join("fewer.glb");
+    let r = bake_cloth(&fewer, &mut |_, _| {}).unwrap();
+    let e = worst_error(&fewer, &load(&fewer.output), r.fps).0;
+    assert!(e > tolerance as f32, "K-1 targets: {e}");
+
+    // Much smaller than one target per frame.
+    let mut full = lab_job(&dir.path().join("full.glb"), frames);
+    full.normals = true;
+    let rf = bake_cloth(&full, &mut |_, _| {}).unwrap();
+    assert!(
+        report.output_bytes * 5 < rf.output_bytes,
+        "{} vs {}",
+        report.output_bytes,
+        rf.output_bytes
+    );
+}
+
+#[test]
+fn quantized_basis_uses_int16_and_stays_within_the_tolerance() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab.gltf");
+    let tolerance = 1e-3;
+    let mut job = lab_job(&out, 60);
+    job.basis = Some(BasisSize::Auto);
+    job.basis_tolerance = Some(tolerance);
+    job.quantize = Some(QuantizeMode::Auto);
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let basis = report.cache.basis.as_ref().unwrap();
+    assert_eq!(basis.quantization.positions, "int16");
+    let played = load(&out);
+    assert_eq!(played.position_type, gltf::accessor::DataType::I16);
+    assert_eq!(played.extensions_required, vec!["KHR_mesh_quantization"]);
+    let (worst, frame) = worst_error(&job, &played, report.fps);
+    assert!(
+        worst <= tolerance as f32 + ROUNDING,
+        "{worst} m off at frame {frame}"
+    );
+    assert!((worst - basis.max_error as f32).abs() < 1e-5);
+
+    // inspect reads the quantised file and names its encoding.
+    let info = scenebake::inspect::inspect(&out).unwrap();
+    assert_eq!(info.failures().count(), 0);
+    let e = &info.meshes[0].encoding;
+    assert_eq!(e.kind, "basis");
+    assert!(e.quantized);
+    assert_eq!(e.positions, "i16 normalized");
+    let stored: usize = e.target_positions.iter().map(|(_, n)| n).sum();
+    assert_eq!(stored, basis.targets);
+    assert_eq!(
+        basis.quantization.int8_targets + basis.quantization.int16_targets,
+        basis.targets
+    );
+
+    let mut float = job.clone();
+    float.quantize = Some(QuantizeMode::Off);
+    float.output = dir.path().join("float.gltf");
+    let rf = bake_cloth(&float, &mut |_, _| {}).unwrap();
+    assert!(report.output_bytes < rf.output_bytes);
+}
+
+#[test]
+fn keyframe_tolerance_drops_weight_keys_within_the_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab.glb");
+    let frames = 90;
+    let mut job = lab_job(&out, frames);
+    job.basis = Some(BasisSize::Auto);
+    job.keyframe_tolerance = Some(2e-3);
+    job.quantize = Some(QuantizeMode::Off);
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let basis = report.cache.basis.as_ref().unwrap();
+    // The basis tolerance defaults to the keyframe tolerance.
+    assert_eq!(basis.tolerance, 2e-3);
+    let played = load(&out);
+    assert!(
+        played.times.len() < frames / 2,
+        "{} keys",
+        played.times.len()
+    );
+    assert_eq!(played.times.len(), report.cache.stats.kept_frames.len());
+    let (worst, frame) = worst_error(&job, &played, report.fps);
+    assert!(worst <= 2e-3 + ROUNDING, "{worst} at frame {frame}");
+}
+
+#[test]
+fn max_targets_too_small_is_an_error_naming_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab.glb");
+    let mut job = lab_job(&out, 60);
+    job.basis = Some(BasisSize::Auto);
+    job.basis_tolerance = Some(1e-5);
+    job.max_targets = Some(2);
+    let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
+    assert!(e.contains("--max-targets"), "{e}");
+    assert!(!out.exists(), "nothing written");
+
+    // Without --basis, a cache with more targets than allowed is refused too.
+    let mut plain = lab_job(&out, 20);
+    plain.max_targets = Some(10);
+    let e = bake_cloth(&plain, &mut |_, _| {}).unwrap_err().to_string();
+    assert!(e.contains("--max-targets"), "{e}");
+
+    // Within the cap, it is respected.
+    job.basis_tolerance = Some(1e-3);
+    job.max_targets = Some(40);
+    let r = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    assert!(r.cache.stats.targets <= 40);
+}
+
+#[test]
+fn fixed_basis_writes_k_targets_and_more_targets_are_closer() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut errors = Vec::new();
+    for k in [1, 4, 12] {
+        let out = dir.path().join(format!("k{k}.glb"));
+        let mut job = lab_job(&out, 60);
+        job.basis = Some(BasisSize::Fixed(k));
+        job.quantize = Some(QuantizeMode::Off);
+        let r = bake_cloth(&job, &mut |_, _| {}).unwrap();
+        let played = load(&out);
+        assert_eq!(played.k(), k);
+        let (e, _) = worst_error(&job, &played, r.fps);
+        assert!((e - r.cache.basis.as_ref().unwrap().max_error as f32).abs() < 1e-5);
+        errors.push(e);
+    }
+    assert!(errors[0] > errors[1] && errors[1] > errors[2], "{errors:?}");
+    let mut job = lab_job(&dir.path().join("x.glb"), 10);
+    job.basis = Some(BasisSize::Fixed(11));
+    let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
+    assert!(e.contains("--basis"), "{e}");
+}
+
+#[test]
+fn a_cache_that_never_moves_gets_one_zero_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("still.glb");
+    let mut job = ClothJob::new(
+        ClothSource::File(morph_reader::mesh_path("plane_30x30.obj")),
+        out.clone(),
+    );
+    job.frames = Some(5);
+    // No gravity, no wind, springs at rest: nothing moves.
+    job.gravity = Some(scenebake::glam::DVec3::ZERO);
+    job.basis = Some(BasisSize::Auto);
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let basis = report.cache.basis.as_ref().unwrap();
+    assert_eq!(basis.targets, 1);
+    let played = load(&out);
+    let (worst, _) = worst_error(&job, &played, report.fps);
+    assert!(worst <= 1e-3, "{worst}");
+}
