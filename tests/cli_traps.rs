@@ -95,7 +95,8 @@ fn scene_files_empty_or_misspelt_are_errors_with_a_suggestion() {
     let (code, _, err) = run(dir.path(), &["run", "typo.toml"]);
     assert_eq!(code, 1);
     assert!(
-        err.starts_with("error: typo.toml: [[cloth]] job 1 (`lab`): unknown key `stifness` (did you mean `stiffness`? keys: bend-stiffness, collider,"),
+        err.starts_with("error: typo.toml: [[cloth]] job 1 (`lab`): unknown key `stifness` (did you mean `stiffness`? keys: ")
+            && err.contains(" bend-stiffness, collider,"),
         "{err}"
     );
     std::fs::write(
@@ -163,9 +164,14 @@ fn warnings_and_each_file_size_are_printed() {
         "{}",
         lines[0]
     );
-    assert_eq!(
-        lines[1],
-        "warning: lab-cloth (resolution 10): 3 frames stopped at the iteration cap before the tolerance (see unconverged_frames; raise --max-newton or --substeps)"
+    assert!(
+        lines[1].starts_with(
+            "warning: lab-cloth (resolution 10): 3 of 3 frames ended above the tolerance \
+             0.000000000000001 (worst "
+        ) && lines[1]
+            .ends_with("); raise --max-iterations or --substeps, or see unconverged_frames"),
+        "{}",
+        lines[1]
     );
 }
 

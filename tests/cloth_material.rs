@@ -57,10 +57,10 @@ fn recomputed_residual(p: &PreparedCloth, xm2: &[DVec3], xm1: &[DVec3], x: &[DVe
         }
     }
     let (mut num, mut weight) = (0.0, 0.0);
-    for i in 0..x.len() {
-        if !m.pinned[i] {
-            num += grad[i].length_squared();
-            weight += m.mass[i] * m.mass[i];
+    for ((g, pinned), mass) in grad.iter().zip(&m.pinned).zip(&m.mass) {
+        if !pinned {
+            num += g.length_squared();
+            weight += mass * mass;
         }
     }
     num.sqrt() / (weight.sqrt() * g.length().max(1.0))

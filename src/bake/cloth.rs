@@ -1098,8 +1098,13 @@ pub fn convergence_warning(frames: &[StepStats], tolerance: f64) -> Option<Strin
         .enumerate()
         .map(|(i, f)| (i + 1, f.residual))
         .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+    let worst = if worst >= 0.01 {
+        format!("{worst:.3}")
+    } else {
+        format!("{worst:.2e}")
+    };
     Some(format!(
-        "{above} of {} frames ended above the tolerance {tolerance} (worst {worst:.3} at frame \
+        "{above} of {} frames ended above the tolerance {tolerance} (worst {worst} at frame \
          {worst_frame}); raise --max-iterations or --substeps, or see unconverged_frames",
         frames.len()
     ))

@@ -68,18 +68,18 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
     match &cli.command {
         Command::Cloth(args) => {
             let outcome = run_cloth(args, "cloth", cli.quiet)?;
-            print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
             }
+            print_warnings(&outcome);
             Ok(())
         }
         Command::Ik(args) => {
             let outcome = run_ik(args, "ik", cli.quiet)?;
-            print_warnings(&outcome);
             if !cli.quiet {
                 eprintln!("{}", summary_line(&outcome));
             }
+            print_warnings(&outcome);
             Ok(())
         }
         Command::Run(args) => scene::run(args, cli.quiet),

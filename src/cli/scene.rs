@@ -78,10 +78,6 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                 job.kind
             )
         })?;
-        print_warnings(&Outcome {
-            name: job.name.clone(),
-            ..outcome.clone()
-        });
         if !quiet {
             eprintln!(
                 "[{}/{}] {}",
@@ -93,6 +89,10 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                 })
             );
         }
+        print_warnings(&Outcome {
+            name: job.name.clone(),
+            ..outcome.clone()
+        });
         super::interrupt::record_written(outcome.files.iter().map(|(f, _)| f.clone()));
         outcomes.push(Outcome {
             name: job.name.clone(),
