@@ -3,14 +3,16 @@
 //!
 //! Run with `cargo bench --bench ik`. Before timing, the mean iterations per frame over the
 //! circle are printed for each solver and chain length. The Fox group solves the rig
-//! chain (b_Spine01_02..b_Head_05 of meshes/Fox.glb) along its default heart.
+//! chain (b_Spine01_02..b_Head_05 of meshes/Fox.glb) along its default heart. The constrained
+//! group solves a 3-joint arm writing a cursive word on a board, free and then with a pole, an
+//! elbow hinge and a shoulder cone, printing mean iterations for each before timing.
 
 use std::f64::consts::TAU;
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use scenebake::glam::DVec3;
-use scenebake::ik::{bake_ik, Ccd, Chain, Fabrik, IkJob, IkSolver};
+use scenebake::ik::{bake_ik, Ccd, Chain, Constraints, Fabrik, IkJob, IkSolver};
 
 fn circle() -> Vec<DVec3> {
     (0..150)
@@ -154,5 +156,72 @@ fn text_bake(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, solve, fox, text_bake);
+/// A shoulder-elbow-hand arm (two 0.6 bones) writing "hello" in the cursive font on a board in
+/// front of it: unconstrained, then with `--pole 0.6,-0.5,0 --limit joint_1:hinge:0..150
+/// --limit joint_0:cone:100`.
+fn constrained(c: &mut Criterion) {
+    let dir = tempfile::tempdir().unwrap();
+    let job = IkJob {
+        joints: Some(3),
+        length: Some(1.2),
+        text: Some("hello".into()),
+        font: Some("cursive".into()),
+        size: Some(0.08),
+        center: Some(DVec3::new(0.15, 0.45, 0.45)),
+        normal: Some(DVec3::new(0.0, 0.0, -1.0)),
+        spacing: Some(0.002),
+        output: dir.path().join("arm.glb"),
+        ..Default::default()
+    };
+    let targets: Vec<DVec3> = bake_ik(&job, &mut |_, _| {})
+        .unwrap()
+        .targets
+        .iter()
+        .map(|t| DVec3::from_array(*t))
+        .collect();
+    let arm = Chain::straight(3, 1.2).unwrap();
+    let limited = Constraints::from_specs(
+        &arm,
+        Some(DVec3::new(0.6, -0.5, 0.0)),
+        &["joint_1:hinge:0..150".into(), "joint_0:cone:100".into()],
+    )
+    .unwrap();
+    let free = Constraints::default();
+    let mut group = c.benchmark_group("arm_writing");
+    group
+        .sample_size(20)
+        .measurement_time(std::time::Duration::from_secs(2))
+        .warm_up_time(std::time::Duration::from_millis(500));
+    for (name, solver) in solvers() {
+        for (label, cons) in [("free", &free), ("limited", &limited)] {
+            let mut pose = arm.rest_pose();
+            let (mut total, mut reached) = (0, 0);
+            for t in &targets {
+                let r = solver.solve_with(&arm, &mut pose, *t, cons).unwrap();
+                total += r.iterations;
+                reached += usize::from(r.reached);
+            }
+            eprintln!(
+                "arm {name} {label}: mean iterations {:.2}, reached {reached}/{}",
+                total as f64 / targets.len() as f64,
+                targets.len()
+            );
+            group.bench_function(format!("{name}_{label}"), |b| {
+                let mut pose = arm.rest_pose();
+                let mut k = 0;
+                b.iter(|| {
+                    k = (k + 1) % targets.len();
+                    black_box(
+                        solver
+                            .solve_with(&arm, &mut pose, targets[k], cons)
+                            .unwrap(),
+                    )
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, solve, fox, text_bake, constrained);
 criterion_main!(benches);

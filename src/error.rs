@@ -47,6 +47,14 @@ pub enum Error {
         /// What is wrong, naming the element.
         problem: ColliderMeshProblem,
     },
+    /// A character of `--text` that the font has no glyph for.
+    #[error("--text: font `{font}` has no glyph for {glyph:?} (U+{:04X})", u32::from(*glyph))]
+    UnknownGlyph {
+        /// The font's name (built-in name or file path).
+        font: String,
+        /// The character.
+        glyph: char,
+    },
     /// A command-line option or scene-file key has an invalid value.
     #[error("invalid value for {option}: {message}")]
     InvalidOption {

@@ -551,6 +551,31 @@ fn bad_ik_options_name_the_option_or_joint() {
             &["--center", "3 comma-separated"],
         ),
         (
+            &["--preset", "lab-arm", "--text", "café", "--font", "script"],
+            &["font `script`", "'é'"],
+        ),
+        (
+            &["--preset", "lab-arm", "--text", "hi", "--font", "comic"],
+            &["--font", "comic", "cursive"],
+        ),
+        (
+            &[
+                "--joints",
+                "3",
+                "--curve",
+                "circle",
+                "--limit",
+                "elbow:cone:30",
+            ],
+            &["--limit", "elbow", "joint_1"],
+        ),
+        (
+            &[
+                "--preset", "lab-arm", "--curve", "circle", "--normal", "0,0,0",
+            ],
+            &["--normal", "non-zero"],
+        ),
+        (
             &[
                 "--rig",
                 fox,

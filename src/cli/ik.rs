@@ -10,7 +10,7 @@ use scenebake::ik::bake::IkJob;
 #[derive(Debug, Args)]
 #[command(
     allow_negative_numbers = true,
-    after_help = "Examples:\n  scenebake ik --preset lab-arm --curve circle --solver fabrik -o exports/circle.glb\n  scenebake ik --preset lab-arm --text \"HELLO\" -o exports/hello.glb --report hello.json\n  scenebake ik --rig meshes/Fox.glb --chain b_Spine01_02..b_Head_05 --curve heart -o exports/fox.glb"
+    after_help = "Examples:\n  scenebake ik --preset lab-arm --curve circle --solver fabrik -o exports/circle.glb\n  scenebake ik --preset lab-arm --text \"hello\" --font script -o exports/hello.glb --report hello.json\n  scenebake ik --rig meshes/Fox.glb --chain b_Spine01_02..b_Head_05 --curve heart -o exports/fox.glb"
 )]
 pub struct IkArgs {
     /// A generated reference chain: the labs' 5-joint arm.
@@ -43,15 +43,30 @@ pub struct IkArgs {
     /// Largest rotation of any joint from one frame to the next, in degrees (clamps sudden flips).
     #[arg(long, value_name = "DEG")]
     pub max_angle: Option<f64>,
+    /// Keep the chain's bend facing this world point (like Blender's IK pole): an elbow points
+    /// towards it.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub pole: Option<DVec3>,
+    /// Limit a joint, from its rest rotation, in degrees: JOINT:hinge:MIN..MAX (one axis: with
+    /// --pole, positive bends the joint out towards the pole; or give the axis as a world
+    /// direction, JOINT:hinge:MIN..MAX:X,Y,Z) or JOINT:cone:DEG (the bone stays within DEG of
+    /// its rest direction). Repeat for several joints.
+    #[arg(long, value_name = "JOINT:KIND:RANGE", allow_hyphen_values = true)]
+    pub limit: Vec<String>,
     /// Frames per second of the animation.
     #[arg(long, default_value_t = 30.0, value_name = "F")]
     pub fps: f64,
     /// Follow a closed curve.
     #[arg(long, value_enum)]
     pub curve: Option<CurveArg>,
-    /// Write text with single-stroke letters (A–Z, 0–9, space, punctuation).
+    /// Write text (lines split at \n) in --font.
     #[arg(long, value_name = "TEXT")]
     pub text: Option<String>,
+    /// Font for --text: a Hershey single-stroke font (simplex, duplex, triplex, script,
+    /// script-complex, cursive, sans, greek), the old capitals-only `grid`, or a TrueType/OpenType
+    /// file (letters drawn as outlines) [default: simplex].
+    #[arg(long, value_name = "NAME|FILE.ttf")]
+    pub font: Option<String>,
     /// Draw every path of an SVG file (lines, Béziers and arcs, flattened).
     #[arg(long, value_name = "FILE.svg")]
     pub svg: Option<PathBuf>,
@@ -64,6 +79,10 @@ pub struct IkArgs {
     /// Centre of the drawing [lab arm: the origin; rigs: in front of the chain].
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub center: Option<DVec3>,
+    /// Direction the drawing board faces (its normal); the drawing reads correctly from the
+    /// chain root's side [default: facing the chain root along its rest direction].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub normal: Option<DVec3>,
     /// Letter height (--text) or drawing height (--svg) in scene units [default: fit the reach].
     #[arg(long, value_name = "H")]
     pub size: Option<f64>,
@@ -74,6 +93,13 @@ pub struct IkArgs {
     /// the chosen fps; the lab circle keeps its 150 targets].
     #[arg(long, value_name = "D")]
     pub spacing: Option<f64>,
+    /// Pen speed in scene units per second: one target per frame, every stroke and every lift
+    /// starting and ending at rest (instead of --spacing).
+    #[arg(long, value_name = "V")]
+    pub pen_speed: Option<f64>,
+    /// Seconds for the pen to reach --pen-speed from rest, and to stop [default: 0.15].
+    #[arg(long, value_name = "S")]
+    pub ease: Option<f64>,
     /// Output file: .glb, or .gltf with a .bin beside it.
     #[arg(short = 'o', long, value_name = "FILE")]
     pub output: PathBuf,
@@ -138,16 +164,22 @@ impl IkArgs {
             max_iterations: self.max_iterations,
             tolerance: self.tolerance,
             max_angle: self.max_angle,
+            pole: self.pole,
+            limit: self.limit.clone(),
             fps: self.fps,
             curve: self.curve.map(|c| name(&c).parse()).transpose()?,
             text: self.text.clone(),
+            font: self.font.clone(),
             svg: self.svg.clone(),
             points: self.points.clone(),
             radius: self.radius,
             center: self.center,
+            normal: self.normal,
             size: self.size,
             lift: self.lift,
             spacing: self.spacing,
+            pen_speed: self.pen_speed,
+            ease: self.ease,
             output: self.output.clone(),
             report: self.report.clone(),
         })

@@ -283,6 +283,12 @@ fn job_arguments(kind: &str, table: &toml::Table, dir: &Path) -> anyhow::Result<
         for v in values {
             let text = match v {
                 toml::Value::String(s) if PATH_KEYS.contains(&key.as_str()) => lexically_normal(&dir.join(s)).into_os_string(),
+                // A font file (not a built-in font name) is relative to the scene too.
+                toml::Value::String(s)
+                    if key == "font" && (s.contains('/') || s.contains('.')) =>
+                {
+                    lexically_normal(&dir.join(s)).into_os_string()
+                }
                 // A mesh collider's file is relative to the scene too.
                 toml::Value::String(s) if key == "collider" && s.starts_with("mesh:") => {
                     let mut spec = OsString::from("mesh:");

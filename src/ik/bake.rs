@@ -11,12 +11,14 @@ use std::time::Instant;
 use glam::{DQuat, DVec2, DVec3};
 
 use super::chain::{Chain, ROOT_HEIGHT_FRACTION};
+use super::constraints::Constraints;
 use super::rig::RigDocument;
 use super::solver::{IkSolver, SolverConfig};
 use super::{Ccd, Fabrik};
 use crate::error::{Error, Result};
 use crate::export::skin::{write_chain_gltf, write_rig_gltf, IkFrames};
-use crate::path::{self, CurveKind, PenTarget, Plane, Stroke};
+use crate::path::font::Font;
+use crate::path::{self, CurveKind, PenTarget, Plane, Stroke, Timing};
 
 /// Which solver runs (`--solver`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -61,6 +63,9 @@ pub const LAB_ARM: &str = "lab-arm";
 /// on the 2.6-long arm) drawn in 5 s, so at the default 30 fps it keeps the lab's 150 targets.
 pub const TIP_SPEED_PER_REACH: f64 = TAU * 0.6 / 2.6 / 5.0;
 
+/// Default time for the pen to reach `--pen-speed` from rest (and to stop), seconds.
+pub const DEFAULT_EASE: f64 = 0.15;
+
 /// One `scenebake ik` run. Each field is one command-line option:
 ///
 /// | field | option | default |
@@ -74,22 +79,31 @@ pub const TIP_SPEED_PER_REACH: f64 = TAU * 0.6 / 2.6 / 5.0;
 /// | `max_iterations` | `--max-iterations N` | 100 |
 /// | `tolerance` | `--tolerance D` (scene units) | 1e-4 |
 /// | `max_angle` | `--max-angle DEG` (per joint per frame) | unlimited |
+/// | `pole` | `--pole X,Y,Z` (the chain bends towards this world point) | none |
+/// | `limit` | `--limit JOINT:hinge:MIN..MAX[:X,Y,Z]`, `--limit JOINT:cone:DEG` (repeatable; [`Constraints::from_specs`]) | none |
 /// | `fps` | `--fps F` | 30 |
 /// | `curve` | `--curve circle\|square\|heart\|triangle\|star` ([`CurveKind::from_str`]) | — |
 /// | `text` | `--text "..."` | — |
+/// | `font` | `--font NAME\|FILE.ttf` (with `--text`; [`crate::path::font`]) | simplex |
 /// | `svg` | `--svg FILE` | — |
 /// | `points` | `--points FILE.csv` | — |
 /// | `radius` | `--radius R` (curve size) | lab arm: 0.6 (heart 0.5); else reach·0.6/2.6 (heart reach·0.5/2.6) |
-/// | `center` | `--center X,Y,Z` ([`crate::spec::parse_vec3`]) | lab arm: origin; else root + (1.7/2.6)·reach along the chain |
+/// | `center` | `--center X,Y,Z` ([`crate::spec::parse_vec3`]) | lab arm: origin; with `normal`: root − (1.7/2.6)·reach·normal; else root + (1.7/2.6)·reach along the chain |
+/// | `normal` | `--normal X,Y,Z` (the board faces along it) | the chain's rest direction, reversed |
 /// | `size` | `--size H` (letter height for `--text`, drawing height for `--svg`) | fit to reach |
 /// | `lift` | `--lift D` (pen lift between strokes) | 0.04·reach |
 /// | `spacing` | `--spacing D` (target spacing along the path) | tip speed (0.29·reach/s) / fps |
+/// | `pen_speed` | `--pen-speed V` (scene units/s; strokes and lifts start and end at rest) | none: even spacing |
+/// | `ease` | `--ease S` (seconds to reach the pen speed; with `pen_speed`) | 0.15 |
 /// | `output` | `-o FILE.glb\|.gltf` | `exports/ik.glb` |
 /// | `report` | `--report FILE.json` | none |
 ///
 /// Exactly one chain source (`preset`, `joints`, or `rig` + `chain`) and exactly one path source
-/// (`curve`, `text`, `svg`, `points`) must be given. The drawing plane is perpendicular to the
-/// chain's rest direction (root → end effector) through `center`, seen from the root's side.
+/// (`curve`, `text`, `svg`, `points`) must be given. The drawing plane (the board) passes through
+/// `center` and faces along `normal` (by default it is perpendicular to the chain's rest
+/// direction, root → end effector). Drawings are laid out to read correctly for someone on the
+/// chain root's side of the board, up towards world +Y, whichever way `normal` points; the pen
+/// lifts towards that side.
 ///
 /// The struct also (de)serialises with serde under the option names (`max-iterations`,
 /// `max-angle`...), every key optional, unknown keys rejected, so scene files can hold a job.
@@ -114,12 +128,18 @@ pub struct IkJob {
     pub tolerance: f64,
     /// `--max-angle` (degrees).
     pub max_angle: Option<f64>,
+    /// `--pole` (world point).
+    pub pole: Option<DVec3>,
+    /// `--limit` specifications, one per limited joint.
+    pub limit: Vec<String>,
     /// `--fps`.
     pub fps: f64,
     /// `--curve`.
     pub curve: Option<CurveKind>,
     /// `--text`.
     pub text: Option<String>,
+    /// `--font` (built-in name or font file).
+    pub font: Option<String>,
     /// `--svg`.
     pub svg: Option<PathBuf>,
     /// `--points`.
@@ -128,12 +148,18 @@ pub struct IkJob {
     pub radius: Option<f64>,
     /// `--center` (world position).
     pub center: Option<DVec3>,
+    /// `--normal` (world direction the board faces).
+    pub normal: Option<DVec3>,
     /// `--size` (scene units).
     pub size: Option<f64>,
     /// `--lift` (scene units).
     pub lift: Option<f64>,
     /// `--spacing` (scene units).
     pub spacing: Option<f64>,
+    /// `--pen-speed` (scene units per second).
+    pub pen_speed: Option<f64>,
+    /// `--ease` (seconds).
+    pub ease: Option<f64>,
     /// `-o`.
     pub output: PathBuf,
     /// `--report`.
@@ -152,16 +178,22 @@ impl Default for IkJob {
             max_iterations: 100,
             tolerance: 1e-4,
             max_angle: None,
+            pole: None,
+            limit: Vec::new(),
             fps: 30.0,
             curve: None,
             text: None,
+            font: None,
             svg: None,
             points: None,
             radius: None,
             center: None,
+            normal: None,
             size: None,
             lift: None,
             spacing: None,
+            pen_speed: None,
+            ease: None,
             output: PathBuf::from("exports/ik.glb"),
             report: None,
         }
@@ -272,6 +304,40 @@ fn setup_chain(job: &IkJob) -> Result<Setup> {
     })
 }
 
+/// The board's centre and the viewing direction (unit, from the reader's side into the board):
+/// see [`IkJob`] for the defaults.
+fn board(job: &IkJob, lab: bool, root: DVec3, tip: DVec3, reach: f64) -> Result<(DVec3, DVec3)> {
+    if let Some(c) = job.center {
+        if !c.is_finite() {
+            return Err(Error::option("--center", "must be finite"));
+        }
+    }
+    let Some(n) = job.normal else {
+        let view = (tip - root).normalize_or(DVec3::NEG_Y);
+        let center = job.center.unwrap_or(if lab {
+            DVec3::ZERO
+        } else {
+            root + view * (reach * ROOT_HEIGHT_FRACTION)
+        });
+        return Ok((center, view));
+    };
+    if !n.is_finite() || n.length() < 1e-12 {
+        return Err(Error::option(
+            "--normal",
+            format!("{n}: must be a finite, non-zero direction"),
+        ));
+    }
+    let n = n.normalize();
+    let center = job.center.unwrap_or(if lab {
+        DVec3::ZERO
+    } else {
+        root - n * (reach * ROOT_HEIGHT_FRACTION)
+    });
+    // The reader stands on the root's side of the board.
+    let view = if (root - center).dot(n) < 0.0 { n } else { -n };
+    Ok((center, view))
+}
+
 /// Places 2-D strokes (centred drawing units) on the plane, scaled to `scale`.
 fn place(plane: &Plane, strokes: &[Vec<DVec2>], scale: f64, closed: bool) -> Vec<Stroke> {
     strokes
@@ -328,6 +394,9 @@ fn build_strokes(
             "give exactly one target path",
         ));
     }
+    if job.font.is_some() && job.text.is_none() {
+        return Err(Error::option("--font", "only applies with --text"));
+    }
     let default_radius = |heart: bool| {
         let base = if heart { 0.5 } else { 0.6 };
         if lab {
@@ -349,12 +418,20 @@ fn build_strokes(
     }
     let max_height = 2.0 * default_radius(false);
     if let Some(text) = &job.text {
-        let (strokes, extent) = path::text::layout(text)?;
+        let font = Font::load(job.font.as_deref().unwrap_or(path::font::DEFAULT))?;
+        let laid = path::font::layout(&font, text)?;
         let scale = match job.size {
-            Some(h) => h / path::text::CAP_HEIGHT,
-            None => fit_scale(extent, disc, max_height),
+            Some(h) => h / font.cap_height(),
+            None => fit_scale(laid.extent, disc, max_height),
         };
-        return Ok(place(plane, &strokes, scale, false));
+        return Ok(laid
+            .strokes
+            .iter()
+            .map(|(s, closed)| Stroke {
+                points: s.iter().map(|p| plane.to_world(*p * scale)).collect(),
+                closed: *closed,
+            })
+            .collect());
     }
     if let Some(svg) = &job.svg {
         let shapes = path::svg::read_svg(svg)?;
@@ -424,29 +501,47 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     if let Some(l) = job.lift {
         crate::spec::non_negative("--lift", l)?;
     }
-    if let Some(c) = job.center {
-        if !c.is_finite() {
-            return Err(Error::option("--center", "must be finite"));
-        }
-    }
     let setup = setup_chain(job)?;
     let chain = &setup.chain;
+    let constraints = Constraints::from_specs(chain, job.pole, &job.limit)?;
     let rest = chain.rest_pose();
     let reach = chain.reach(&rest);
     let root = rest.position(0);
-    let normal = (rest.tip() - root).normalize_or(DVec3::NEG_Y);
-    let center = job.center.unwrap_or(if setup.lab {
-        DVec3::ZERO
+    let (center, view) = board(job, setup.lab, root, rest.tip(), reach)?;
+    let plane = if job.normal.is_some() {
+        Plane::facing_from(center, view, root)
     } else {
-        root + normal * (reach * ROOT_HEIGHT_FRACTION)
-    });
-    let plane = Plane::facing(center, normal);
-    let h = (center - root).dot(normal);
+        Plane::facing(center, view)
+    };
+    let h = (center - root).dot(view);
     let disc = (reach * reach - h * h).max(0.0).sqrt();
-    let spacing = job.spacing.unwrap_or(reach * TIP_SPEED_PER_REACH / job.fps);
+    positive_opt("--pen-speed", job.pen_speed)?;
+    if job.pen_speed.is_some() && job.spacing.is_some() {
+        return Err(Error::option(
+            "--pen-speed",
+            "give --pen-speed or --spacing, not both",
+        ));
+    }
+    if let Some(e) = job.ease {
+        if job.pen_speed.is_none() {
+            return Err(Error::option("--ease", "only applies with --pen-speed"));
+        }
+        crate::spec::non_negative("--ease", e)?;
+    }
+    let spacing = match job.pen_speed {
+        Some(v) => v / job.fps,
+        None => job.spacing.unwrap_or(reach * TIP_SPEED_PER_REACH / job.fps),
+    };
+    let timing = match job.pen_speed {
+        Some(_) => Timing::Eased {
+            step: spacing,
+            ease_frames: job.ease.unwrap_or(DEFAULT_EASE) * job.fps,
+        },
+        None => Timing::Even(spacing),
+    };
     let lift = job.lift.unwrap_or(0.04 * reach);
     let strokes = build_strokes(job, &plane, reach, setup.lab, disc, spacing)?;
-    let targets: Vec<PenTarget> = path::pen_path(&strokes, spacing, -normal * lift);
+    let targets: Vec<PenTarget> = path::pen_path_timed(&strokes, timing, -view * lift);
     if targets.is_empty() {
         return Err(Error::option(
             "--curve/--text/--svg/--points",
@@ -475,7 +570,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     );
     let mut reached = 0;
     for (k, t) in targets.iter().enumerate() {
-        let r = solver.solve(chain, &mut pose, t.position)?;
+        let r = solver.solve_with(chain, &mut pose, t.position, &constraints)?;
         rotations.extend_from_slice(&pose.rotations);
         tips.push(pose.tip());
         iterations.push(r.iterations);

@@ -3,12 +3,15 @@
 //! Each iteration sweeps from the joint before the end effector down to the root. At joint i the
 //! world rotation `q` that turns `effector - p_i` onto `target - p_i` is applied in the joint's
 //! parent frame, `r_i ← R_{i-1}⁻¹ q R_{i-1} r_i` (the labs' `q r_i` is only right at the root or
-//! when every parent rotation is the identity), then FK is refreshed from joint i.
+//! when every parent rotation is the identity), clamped to the joint's limit if it has one, then
+//! FK is refreshed from joint i. With a pole, each sweep ends by turning the chain about its
+//! root–tip line to face the pole ([`Constraints`]).
 
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
-use super::solver::{begin, end, Begin, IkSolver, SolveReport, SolverConfig};
+use super::constraints::{clamp_rotation, face_pole, Constraints};
+use super::solver::{aim_constrained, begin, end, Begin, IkSolver, SolveReport, SolverConfig};
 use crate::error::Result;
 
 /// The CCD solver.
@@ -19,9 +22,15 @@ pub struct Ccd {
 }
 
 impl IkSolver for Ccd {
-    fn solve(&self, chain: &Chain, pose: &mut Pose, target: DVec3) -> Result<SolveReport> {
+    fn solve_with(
+        &self,
+        chain: &Chain,
+        pose: &mut Pose,
+        target: DVec3,
+        c: &Constraints,
+    ) -> Result<SolveReport> {
         let cfg = &self.config;
-        let start = match begin(chain, pose, target, cfg)? {
+        let start = match begin(chain, pose, target, cfg, c)? {
             Begin::Done(report) => return Ok(report),
             Begin::Iterate { start } => start,
         };
@@ -32,12 +41,22 @@ impl IkSolver for Ccd {
             for i in (0..n - 1).rev() {
                 let p = pose.position(i);
                 let (from, to) = (pose.tip() - p, target - p);
-                if chain.rotate_joint_towards(pose, i, from, to) {
+                let mut moved = chain.rotate_joint_towards(pose, i, from, to);
+                if let Some(l) = c.limit(i) {
+                    moved |= clamp_rotation(chain, i, l, &mut pose.rotations[i]);
+                }
+                if moved {
                     chain.fk(pose, i);
                 }
             }
+            if let Some(pole) = c.pole {
+                let mut p: Vec<DVec3> = (0..n).map(|i| pose.position(i)).collect();
+                if face_pole(&mut p, pole) {
+                    aim_constrained(chain, pose, &p, c);
+                }
+            }
         }
-        Ok(end(chain, pose, start.as_ref(), target, iterations, cfg))
+        Ok(end(chain, pose, start.as_ref(), target, iterations, cfg, c))
     }
 
     fn name(&self) -> &'static str {

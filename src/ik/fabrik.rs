@@ -7,11 +7,17 @@
 //! onto the solved one, expressed in the joint's parent frame (so rig frames, rest rotations and
 //! scales are respected, and twist carries over continuously from the previous frame), then FK.
 //! The error is measured on the FK pose, never on the pass positions.
+//!
+//! Under [`Constraints`] the passes' positions are first turned to face the pole, and the
+//! rebuild clamps each joint to its limit before aiming the next (a hinged joint's parent first
+//! twists about its bone so the hinge can bend the right way), so every iteration ends in a pose
+//! that respects the limits.
 
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
-use super::solver::{aim_at_positions, begin, end, Begin, IkSolver, SolveReport, SolverConfig};
+use super::constraints::{face_pole, Constraints};
+use super::solver::{aim_constrained, begin, end, Begin, IkSolver, SolveReport, SolverConfig};
 use crate::error::Result;
 
 /// The FABRIK solver.
@@ -39,9 +45,15 @@ pub fn fabrik_pass(p: &mut [DVec3], d: &[f64], target: DVec3) {
 }
 
 impl IkSolver for Fabrik {
-    fn solve(&self, chain: &Chain, pose: &mut Pose, target: DVec3) -> Result<SolveReport> {
+    fn solve_with(
+        &self,
+        chain: &Chain,
+        pose: &mut Pose,
+        target: DVec3,
+        c: &Constraints,
+    ) -> Result<SolveReport> {
         let cfg = &self.config;
-        let start = match begin(chain, pose, target, cfg)? {
+        let start = match begin(chain, pose, target, cfg, c)? {
             Begin::Done(report) => return Ok(report),
             Begin::Iterate { start } => start,
         };
@@ -55,9 +67,12 @@ impl IkSolver for Fabrik {
                 *q = pose.position(i);
             }
             fabrik_pass(&mut p, &d, target);
-            aim_at_positions(chain, pose, &p);
+            if let Some(pole) = c.pole {
+                face_pole(&mut p, pole);
+            }
+            aim_constrained(chain, pose, &p, c);
         }
-        Ok(end(chain, pose, start.as_ref(), target, iterations, cfg))
+        Ok(end(chain, pose, start.as_ref(), target, iterations, cfg, c))
     }
 
     fn name(&self) -> &'static str {

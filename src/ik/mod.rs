@@ -4,7 +4,8 @@
 //! Pipeline of [`bake_ik`]: build a [`Chain`] (the lab arm, a straight chain, or a `ROOT..TIP`
 //! path in a rig via [`rig::RigDocument`]) → place the target path on a drawing plane
 //! ([`crate::path`]) and resample it to one target per frame → solve every frame with an
-//! [`IkSolver`], warm-started from the previous frame → write the glTF
+//! [`IkSolver`] under the job's [`Constraints`] (pole, joint limits), warm-started from the
+//! previous frame → write the glTF
 //! ([`crate::export::skin`]) and the [`IkReport`].
 //!
 //! Conventions: world coordinates are glTF's (+Y up, right-handed, scene units); rotations are
@@ -23,6 +24,7 @@
 pub mod bake;
 pub mod ccd;
 pub mod chain;
+pub mod constraints;
 pub mod fabrik;
 pub mod rig;
 pub mod solver;
@@ -30,5 +32,6 @@ pub mod solver;
 pub use bake::{bake_ik, IkJob, IkReport, SolverKind};
 pub use ccd::Ccd;
 pub use chain::{Chain, Joint, Pose};
+pub use constraints::{Constraints, Limit};
 pub use fabrik::Fabrik;
 pub use solver::{IkSolver, SolveReport, SolverConfig};

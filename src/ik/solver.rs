@@ -4,6 +4,7 @@
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
+use super::constraints::{self, Constraints, Limit};
 use crate::error::{Error, Result};
 
 /// Settings shared by the solvers.
@@ -53,18 +54,40 @@ pub struct SolveReport {
 /// An inverse-kinematics solver: moves `pose` (warm start: whatever it holds) so the chain's end
 /// effector reaches `target` (world coordinates).
 pub trait IkSolver {
-    /// Solves in place and reports.
+    /// Solves in place under `constraints` (pole, joint limits) and reports. The returned pose
+    /// respects every limit.
     ///
     /// # Errors
-    /// [`Error::Chain`] when the pose does not belong to the chain or the target is not finite.
-    fn solve(&self, chain: &Chain, pose: &mut Pose, target: DVec3) -> Result<SolveReport>;
+    /// [`Error::Chain`] when the pose does not belong to the chain, the target is not finite or
+    /// a limit names a joint the chain cannot limit.
+    fn solve_with(
+        &self,
+        chain: &Chain,
+        pose: &mut Pose,
+        target: DVec3,
+        constraints: &Constraints,
+    ) -> Result<SolveReport>;
+
+    /// Solves in place without constraints and reports.
+    ///
+    /// # Errors
+    /// As [`IkSolver::solve_with`].
+    fn solve(&self, chain: &Chain, pose: &mut Pose, target: DVec3) -> Result<SolveReport> {
+        self.solve_with(chain, pose, target, &Constraints::default())
+    }
 
     /// Short name (`"ccd"`, `"fabrik"`).
     fn name(&self) -> &'static str;
 }
 
 /// Checks a solve's preconditions.
-pub(crate) fn check(chain: &Chain, pose: &Pose, target: DVec3) -> Result<()> {
+pub(crate) fn check(chain: &Chain, pose: &Pose, target: DVec3, c: &Constraints) -> Result<()> {
+    if let Some((i, _)) = c.limits.iter().find(|(i, _)| *i + 1 >= chain.len()) {
+        return Err(Error::Chain(format!(
+            "a limit on joint {i}: the chain's limitable joints are 0..{}",
+            chain.len() - 2
+        )));
+    }
     if pose.rotations.len() != chain.len() || pose.world.len() != chain.len() {
         return Err(Error::Chain(format!(
             "pose has {} joints, chain has {}",
@@ -137,6 +160,13 @@ pub(crate) fn too_close(chain: &Chain, pose: &Pose, target: DVec3, config: &Solv
 /// from the root (each rotation is the smallest swing from the current one, so twist is kept),
 /// and leaves `pose.world` consistent. O(n).
 pub(crate) fn aim_at_positions(chain: &Chain, pose: &mut Pose, desired: &[DVec3]) {
+    aim_constrained(chain, pose, desired, &Constraints::default());
+}
+
+/// [`aim_at_positions`] under joint limits: before a hinged joint, its parent twists about its
+/// own bone so the hinge can bend towards the wanted direction; each joint is clamped to its
+/// limit before the next is aimed.
+pub(crate) fn aim_constrained(chain: &Chain, pose: &mut Pose, desired: &[DVec3], c: &Constraints) {
     let n = chain.len();
     for i in 0..n - 1 {
         let parent = if i == 0 {
@@ -151,6 +181,26 @@ pub(crate) fn aim_at_positions(chain: &Chain, pose: &mut Pose, desired: &[DVec3]
         let current = pose.rotations[i] * (chain.joints()[i].scale * j1.translation);
         let wanted = inv * (desired[i + 1] - p_i);
         super::chain::rotate_local(&mut pose.rotations[i], current, wanted);
+        if let (Some(Limit::Hinge { axis, min, max }), true) = (c.limit(i + 1), i + 2 < n) {
+            let frame = parent * chain.local(i, pose.rotations[i]);
+            let rest_child = j1.rotation * (j1.scale * chain.joints()[i + 2].translation);
+            let bone = desired[i + 1] - p_i;
+            if let Some(psi) = constraints::hinge_twist(
+                (frame.matrix3 * *axis).normalize(),
+                frame.matrix3 * rest_child,
+                bone,
+                desired[i + 2] - desired[i + 1],
+                (*min, *max),
+            ) {
+                if let Some(u) = (inv * bone).try_normalize() {
+                    pose.rotations[i] =
+                        (glam::DQuat::from_axis_angle(u, psi) * pose.rotations[i]).normalize();
+                }
+            }
+        }
+        if let Some(l) = c.limit(i) {
+            constraints::clamp_rotation(chain, i, l, &mut pose.rotations[i]);
+        }
         pose.world[i] = parent * chain.local(i, pose.rotations[i]);
     }
     pose.world[n - 1] = pose.world[n - 2] * chain.local(n - 1, pose.rotations[n - 1]);
@@ -174,17 +224,18 @@ pub(crate) fn begin(
     pose: &mut Pose,
     target: DVec3,
     cfg: &SolverConfig,
+    c: &Constraints,
 ) -> Result<Begin> {
-    check(chain, pose, target)?;
+    check(chain, pose, target, c)?;
     let start = cfg.max_angle.map(|_| pose.clone());
     if let Some(r) = stretch_if_unreachable(chain, pose, target, cfg) {
         return Ok(Begin::Done(SolveReport {
             unreachable: true,
-            ..finish(chain, pose, start.as_ref(), target, r.iterations, cfg)
+            ..finish(chain, pose, start.as_ref(), target, r.iterations, cfg, c)
         }));
     }
     if pose.tip().distance(target) > cfg.tolerance {
-        unfold_if_degenerate(chain, pose, target);
+        unfold_if_degenerate(chain, pose, target, c.pole);
     }
     Ok(Begin::Iterate { start })
 }
@@ -198,15 +249,17 @@ pub(crate) fn end(
     target: DVec3,
     iterations: usize,
     cfg: &SolverConfig,
+    c: &Constraints,
 ) -> SolveReport {
     let inside = too_close(chain, pose, target, cfg);
     SolveReport {
         unreachable: inside,
-        ..finish(chain, pose, start, target, iterations, cfg)
+        ..finish(chain, pose, start, target, iterations, cfg, c)
     }
 }
 
-/// Applies the optional rotation limit relative to `start` and computes the final report.
+/// Applies the optional per-frame rotation limit relative to `start`, then the joint limits,
+/// and computes the final report.
 pub(crate) fn finish(
     chain: &Chain,
     pose: &mut Pose,
@@ -214,10 +267,12 @@ pub(crate) fn finish(
     target: DVec3,
     iterations: usize,
     config: &SolverConfig,
+    c: &Constraints,
 ) -> SolveReport {
     if let (Some(max), Some(start)) = (config.max_angle, start) {
         chain.clamp_to(pose, start, max);
     }
+    constraints::clamp_all(chain, pose, c);
     let error = pose.tip().distance(target);
     SolveReport {
         iterations,
@@ -230,8 +285,14 @@ pub(crate) fn finish(
 /// Both CCD and FABRIK stall when the chain is straight and the target lies on its line inside
 /// the reach (every rotation they compute is the identity). Detects that case and bends the
 /// inner joints slightly (0.05 rad each, about a fixed axis perpendicular to the line) so the
-/// solvers can fold the chain. Returns true if it bent the chain.
-pub(crate) fn unfold_if_degenerate(chain: &Chain, pose: &mut Pose, target: DVec3) -> bool {
+/// solvers can fold the chain; with a pole, the bend puts the inner joints on the pole's side.
+/// Returns true if it bent the chain.
+pub(crate) fn unfold_if_degenerate(
+    chain: &Chain,
+    pose: &mut Pose,
+    target: DVec3,
+    pole: Option<DVec3>,
+) -> bool {
     let n = chain.len();
     if n < 3 {
         return false;
@@ -248,7 +309,11 @@ pub(crate) fn unfold_if_degenerate(chain: &Chain, pose: &mut Pose, target: DVec3
     if off_line(target) > eps || (1..n - 1).any(|i| off_line(pose.position(i)) > eps) {
         return false;
     }
-    let axis = dir.any_orthonormal_vector();
+    // Turning each inner joint about w × dir swings the bones below it away from w, leaving
+    // the joints on w's side of the line.
+    let axis = pole
+        .and_then(|p| (p - root).reject_from_normalized(dir).try_normalize())
+        .map_or_else(|| dir.any_orthonormal_vector(), |w| w.cross(dir));
     for i in 1..n - 1 {
         let inv = chain.parent_linear(pose, i).inverse();
         let local_axis = (inv * axis).normalize();

@@ -3,6 +3,7 @@
 //! (pen down along strokes, lifted between them).
 
 pub mod curves;
+pub mod font;
 pub mod points;
 pub mod resample;
 pub mod svg;
@@ -11,7 +12,7 @@ pub mod text;
 use glam::{DVec2, DVec3};
 
 pub use curves::CurveKind;
-pub use resample::resample;
+pub use resample::{resample, resample_eased};
 
 /// A polyline in world coordinates (scene units).
 #[derive(Debug, Clone, PartialEq)]
@@ -58,6 +59,24 @@ impl Plane {
         }
     }
 
+    /// The plane through `center` seen along `normal` by a reader at `eye`: as [`Plane::facing`],
+    /// except that on a level board (a desk or a ceiling, `|normal.y| > 0.9`) "up" points
+    /// horizontally away from the reader, as on a sheet of paper on a table.
+    pub fn facing_from(center: DVec3, normal: DVec3, eye: DVec3) -> Plane {
+        let plane = Plane::facing(center, normal);
+        let away = center - eye;
+        let away = away - away.dot(plane.normal) * plane.normal;
+        if plane.normal.y.abs() <= 0.9 || away.length() < 1e-9 * (1.0 + center.length()) {
+            return plane;
+        }
+        let up = away.normalize();
+        Plane {
+            up,
+            right: plane.normal.cross(up),
+            ..plane
+        }
+    }
+
     /// World position of plane coordinates `p`.
     pub fn to_world(&self, p: DVec2) -> DVec3 {
         self.center + self.right * p.x + self.up * p.y
@@ -71,6 +90,60 @@ pub struct PenTarget {
     pub position: DVec3,
     /// The stroke being drawn (pen down), or `None` while the pen travels lifted.
     pub stroke: Option<usize>,
+}
+
+/// How the targets are spaced along the pen path.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Timing {
+    /// Even arc-length spacing (scene units between targets), pen speed constant.
+    Even(f64),
+    /// One target per frame for a pen moving `step` scene units per frame that starts and stops
+    /// at rest at the ends of every stroke and every lift, taking `ease_frames` frames to speed
+    /// up or slow down ([`resample_eased`]).
+    Eased {
+        /// Cruising distance per frame.
+        step: f64,
+        /// Frames to reach the cruising speed from rest.
+        ease_frames: f64,
+    },
+}
+
+/// [`pen_path`] with a choice of [`Timing`].
+pub fn pen_path_timed(strokes: &[Stroke], timing: Timing, lift: DVec3) -> Vec<PenTarget> {
+    let (step, ease_frames) = match timing {
+        Timing::Even(spacing) => return pen_path(strokes, spacing, lift),
+        Timing::Eased { step, ease_frames } => (step, ease_frames),
+    };
+    let mut out: Vec<PenTarget> = Vec::new();
+    let mut last: Option<DVec3> = None;
+    for (k, s) in strokes.iter().enumerate() {
+        if s.points.is_empty() {
+            continue;
+        }
+        let mut line = s.points.clone();
+        if s.closed {
+            line.push(s.points[0]);
+        }
+        let pts = resample_eased(&line, step, ease_frames);
+        if let Some(end) = last {
+            let start = pts[0];
+            let moved = resample_eased(&[end, end + lift, start + lift, start], step, ease_frames);
+            out.extend(
+                moved[1..moved.len().saturating_sub(1)]
+                    .iter()
+                    .map(|&position| PenTarget {
+                        position,
+                        stroke: None,
+                    }),
+            );
+        }
+        out.extend(pts.iter().map(|&position| PenTarget {
+            position,
+            stroke: Some(k),
+        }));
+        last = Some(pts[pts.len() - 1]);
+    }
+    out
 }
 
 /// Joins strokes into one pen path. Each stroke is resampled to `spacing`; between strokes the

@@ -1,5 +1,5 @@
-//! Single-stroke lettering: a small built-in stroke font (our own, drawn on a 4 × 6 grid) and
-//! the layout of a string into pen strokes.
+//! The `grid` font (`--font grid`): our own small stroke font drawn on a 4 × 6 grid, scenebake's
+//! only font before the Hershey fonts ([`super::font`]) came.
 //!
 //! Glyphs cover A–Z (lower case maps to upper case), 0–9, space and common punctuation
 //! `. , ! ? - + : ; ' " / ( ) = _ * < > # %`. Coordinates are in grid units: the baseline is
@@ -7,7 +7,7 @@
 
 use glam::DVec2;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 /// Height of a capital letter in grid units.
 pub const CAP_HEIGHT: f64 = 6.0;
@@ -17,7 +17,7 @@ pub const ADVANCE: f64 = 5.0;
 pub const LINE_HEIGHT: f64 = 9.0;
 
 /// Strokes of a glyph: `|` separates strokes, spaces separate `x,y` points.
-fn glyph(c: char) -> Option<&'static str> {
+pub(crate) fn grid_glyph(c: char) -> Option<&'static str> {
     Some(match c {
         'A' => "0,0 2,6 4,0|1,2 3,2",
         'B' => "0,0 0,6 3,6 4,5 4,4 3,3 0,3|3,3 4,2 4,1 3,0 0,0",
@@ -80,7 +80,8 @@ fn glyph(c: char) -> Option<&'static str> {
     })
 }
 
-fn parse_glyph(spec: &str) -> Vec<Vec<DVec2>> {
+/// The strokes of a grid glyph, parsed.
+pub(crate) fn parse_grid_glyph(spec: &str) -> Vec<Vec<DVec2>> {
     spec.split('|')
         .filter(|s| !s.trim().is_empty())
         .map(|stroke| {
@@ -95,51 +96,18 @@ fn parse_glyph(spec: &str) -> Vec<Vec<DVec2>> {
         .collect()
 }
 
-/// Whether the font has a glyph for `c` (after upper-casing).
-pub fn has_glyph(c: char) -> bool {
-    c == '\n' || glyph(c.to_ascii_uppercase()).is_some()
-}
-
-/// Lays out `text` as open strokes in grid units, the block centred on the origin (lines
-/// separated by `\n`, each line centred). Returns the strokes and the block's size (width,
-/// height) in grid units.
+/// Lays out `text` in the default font ([`super::font::DEFAULT`]); see [`super::font::layout`].
 ///
 /// # Errors
-/// [`Error::InvalidOption`] (`--text`) naming the first character without a glyph, or for a text
-/// with nothing to draw.
-pub fn layout(text: &str) -> Result<(Vec<Vec<DVec2>>, DVec2)> {
-    if let Some(bad) = text.chars().find(|&c| !has_glyph(c)) {
-        return Err(Error::option("--text", format!("no glyph for {bad:?}; available: A-Z, 0-9, space and . , ! ? - + : ; ' \" / ( ) = _ * < > # %")));
-    }
-    let lines: Vec<&str> = text.lines().collect();
-    let widest = lines.iter().map(|l| l.chars().count()).max().unwrap_or(0);
-    let width = (widest as f64 * ADVANCE - (ADVANCE - 4.0)).max(0.0);
-    let height = CAP_HEIGHT + LINE_HEIGHT * (lines.len().max(1) - 1) as f64;
-    let mut strokes = Vec::new();
-    for (row, line) in lines.iter().enumerate() {
-        let count = line.chars().count();
-        let line_width = (count as f64 * ADVANCE - (ADVANCE - 4.0)).max(0.0);
-        let x0 = -line_width / 2.0;
-        let y0 = height / 2.0 - CAP_HEIGHT - LINE_HEIGHT * row as f64;
-        for (col, c) in line.chars().enumerate() {
-            let offset = DVec2::new(x0 + ADVANCE * col as f64, y0);
-            for s in parse_glyph(glyph(c.to_ascii_uppercase()).unwrap_or("")) {
-                strokes.push(s.into_iter().map(|p| p + offset).collect());
-            }
-        }
-    }
-    if strokes.is_empty() {
-        return Err(Error::option(
-            "--text",
-            "nothing to draw (the text is empty or only spaces)",
-        ));
-    }
-    Ok((strokes, DVec2::new(width, height)))
+/// As [`super::font::layout`].
+pub fn layout(text: &str) -> Result<super::font::TextLayout> {
+    super::font::layout(&super::font::Font::load(super::font::DEFAULT)?, text)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::path::font::{self, Font};
 
     #[test]
     fn every_glyph_parses_inside_its_cell() {
@@ -147,7 +115,7 @@ mod tests {
             .chain('0'..='9')
             .chain(".,!?-+:;'\"/()=_*<>#%".chars())
         {
-            let g = parse_glyph(glyph(c).unwrap());
+            let g = parse_grid_glyph(grid_glyph(c).unwrap());
             assert!(!g.is_empty(), "{c}");
             for s in &g {
                 assert!(s.len() >= 2, "{c}: stroke of one point");
@@ -161,14 +129,19 @@ mod tests {
     }
 
     #[test]
-    fn layout_centres_and_rejects_unknown() {
-        let (strokes, size) = layout("HELLO").unwrap();
-        assert_eq!(size, DVec2::new(24.0, 6.0));
-        let xs = strokes.iter().flatten().map(|p| p.x);
+    fn grid_layout_centres_and_rejects_unknown() {
+        let grid = Font::load("grid").unwrap();
+        let l = font::layout(&grid, "HELLO").unwrap();
+        assert_eq!(l.extent, DVec2::new(24.0, 6.0));
+        let xs = l.strokes.iter().flat_map(|(s, _)| s).map(|p| p.x);
         let (lo, hi) = xs.fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
         assert!((lo + 12.0).abs() < 1e-12 && (hi - 12.0).abs() < 1e-12);
-        assert!(layout("héllo").unwrap_err().to_string().contains("--text"));
-        assert!(layout("  ").is_err());
-        assert!(layout("hello world").is_ok());
+        let e = font::layout(&grid, "héllo").unwrap_err().to_string();
+        assert!(
+            e.contains("--text") && e.contains("'é'") && e.contains("grid"),
+            "{e}"
+        );
+        assert!(font::layout(&grid, "  ").is_err());
+        assert!(font::layout(&grid, "hello world").is_ok());
     }
 }
