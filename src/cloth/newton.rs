@@ -7,14 +7,16 @@
 //! iteration cap is hit.
 //!
 //! The Hessian is 3n×3n with unknown `3i + c` for coordinate c of free particle i. Per spring,
-//! with r = xa − xb, u = r/|r|:
+//! with r = xa − xb, u = r/|r| and tension f(|r|) (see [`super::system::spring_response`]: k·e
+//! stretched, kc·e compressed, jammed past the jamming strain):
 //!
 //! ```text
-//! H_e = k u uᵀ + k max(0, 1 − l/|r|) (I − u uᵀ)
+//! H_e = f′ u uᵀ + max(0, f/|r|) (I − u uᵀ)
 //! ```
 //! added to blocks (a,a) and (b,b) and subtracted from (a,b), (b,a); an anchor adds H_e to its
 //! free end's diagonal block only. Clamping the transverse term at zero (compressed springs)
-//! keeps every H_e positive semi-definite, so H = sM/h² + Σ H_e is positive definite.
+//! keeps every H_e positive semi-definite, so H = sM/h² + Σ H_e is positive definite. Bending
+//! stencils add their constant blocks wᵢwⱼ·I.
 //!
 //! The sparsity pattern never changes during a bake: the upper triangle is laid out once in
 //! compressed columns, every spring knows where its off-diagonal block lives in the value array,
