@@ -275,7 +275,7 @@ fn job_arguments(kind: &str, table: &toml::Table, dir: &Path) -> anyhow::Result<
                     .unwrap_or_default();
                 anyhow!("unknown key `{raw_key}` ({hint}keys: {})", known.join(", "))
             })?;
-        let takes_value = arg.get_num_args().map_or(true, |n| n.takes_values());
+        let takes_value = arg.get_num_args().is_none_or(|n| n.takes_values());
         let values: Vec<&toml::Value> = match value {
             toml::Value::Array(items) => items.iter().collect(),
             v => vec![v],

@@ -359,7 +359,7 @@ pub fn encode_basis_gltf(
             float_pick = Some((float, keys, err, worst));
             break;
         }
-        if best.as_ref().map_or(true, |b| err < b.2) {
+        if best.as_ref().is_none_or(|b| err < b.2) {
             best = Some((float, keys, err, worst));
         }
     }

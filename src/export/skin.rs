@@ -216,7 +216,7 @@ pub fn write_chain_gltf(
         let before = pos.len();
         let w = reach * 0.025;
         tapered_box(a, c, w, w * 0.6, &mut pos, &mut nrm, &mut idx);
-        jnt.extend(std::iter::repeat(i).take(pos.len() - before));
+        jnt.extend(std::iter::repeat_n(i, pos.len() - before));
     }
     // Joint indices as u8 when they fit, else u16 (both valid for JOINTS_0).
     let (bytes, component): (Vec<u8>, _) = if n <= 256 {

@@ -142,7 +142,7 @@ pub fn vat_paths(path: &Path) -> Result<(PathBuf, PathBuf)> {
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    if ext.as_deref() != Some("exr") || path.file_stem().map_or(true, |s| s.is_empty()) {
+    if ext.as_deref() != Some("exr") || path.file_stem().is_none_or(|s| s.is_empty()) {
         return Err(Error::option(
             "--vat",
             format!(

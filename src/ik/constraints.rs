@@ -328,7 +328,7 @@ pub(crate) fn hinge_twist(
         let theta = c0p.cross(wp).dot(axis).atan2(c0p.dot(wp));
         let miss = (range.0 - theta).max(theta - range.1).max(0.0);
         let score = miss * 10.0 + psi.abs();
-        if best.map_or(true, |(s, _)| score < s) {
+        if best.is_none_or(|(s, _)| score < s) {
             best = Some((score, psi));
         }
     }

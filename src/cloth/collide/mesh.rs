@@ -426,7 +426,7 @@ impl MeshCollider {
                     .enumerate()
                 {
                     if let Some(t) = segment_crosses(from, to, tri) {
-                        if best.map_or(true, |(bt, _)| t < bt) {
+                        if best.is_none_or(|(bt, _)| t < bt) {
                             best = Some((t, first + k));
                         }
                     }
