@@ -68,8 +68,11 @@ use json::validation::Checked::Valid;
 
 use super::compact::{delta_accessor, DeltaEncoding};
 use super::frames::RenderFrames;
-use super::gltf_doc::{channel, primitive, sampler, GltfBuilder};
-use super::morph::{cloth_material, flip_v, CacheStats, EncodedMorph, Interpolation, MorphOptions};
+use super::gltf_doc::{primitive, GltfBuilder};
+use super::morph::{
+    cloth_material, flip_v, push_weights_animation, CacheStats, EncodedMorph, Interpolation,
+    MorphOptions,
+};
 use super::statics::push_static_meshes;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -1198,28 +1201,8 @@ fn write(
 
     // Weights: one key per kept frame at its true time.
     let start = b.buffer_len();
-    let times: Vec<f32> = keys
-        .iter()
-        .map(|&k| (k as f64 / options.fps) as f32)
-        .collect();
     let weights: Vec<f32> = keys.iter().flat_map(|&k| c.weights[k].clone()).collect();
-    let input = b.scalars(&times, true);
-    let output = b.scalars(&weights, false);
-    let interpolation = match options.interpolation {
-        Interpolation::Linear => json::animation::Interpolation::Linear,
-        Interpolation::Step => json::animation::Interpolation::Step,
-    };
-    b.root.push(json::Animation {
-        name: Some(options.name.clone()),
-        channels: vec![channel(
-            0,
-            node,
-            json::animation::Property::MorphTargetWeights,
-        )],
-        samplers: vec![sampler(input, output, interpolation)],
-        extensions: None,
-        extras: Default::default(),
-    });
+    push_weights_animation(&mut b, node, &keys, &weights, options);
     bytes.animation = (b.buffer_len() - start) as u64;
     if c.quantized || normals_i8 {
         b.root.extensions_used.push(KHR_MESH_QUANTIZATION.into());

@@ -360,16 +360,28 @@ fn weights_animation(
     options: &MorphOptions,
 ) {
     let targets = kept.len() - 1;
-    let times: Vec<f32> = kept
-        .iter()
-        .map(|&k| (k as f64 / options.fps) as f32)
-        .collect();
     let mut weights = vec![0.0f32; kept.len() * targets];
     for i in 1..kept.len() {
         weights[i * targets + (i - 1)] = 1.0;
     }
+    push_weights_animation(b, node, kept, &weights, options);
+}
+
+/// The mesh's weights animation named after the bake: one key per frame of `keys` at its true
+/// time k / fps, `weights` holding every key's weights in turn (targets values each).
+pub(crate) fn push_weights_animation(
+    b: &mut GltfBuilder,
+    node: json::Index<json::Node>,
+    keys: &[usize],
+    weights: &[f32],
+    options: &MorphOptions,
+) {
+    let times: Vec<f32> = keys
+        .iter()
+        .map(|&k| (k as f64 / options.fps) as f32)
+        .collect();
     let input = b.scalars(&times, true);
-    let output = b.scalars(&weights, false);
+    let output = b.scalars(weights, false);
     let interpolation = match options.interpolation {
         Interpolation::Linear => json::animation::Interpolation::Linear,
         Interpolation::Step => json::animation::Interpolation::Step,
