@@ -500,7 +500,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     }
     check_export_options(job)?;
 
-    let mut bending = Vec::new();
+    // Set where the body takes the fabric model (a surface file without --stiffness).
+    let (mut bending, mut uses_material) = (Vec::new(), false);
     let (mesh, springs, mut pinned): (Mesh, SpringSet, Vec<bool>) = match &job.source {
         ClothSource::LabCloth { resolution } => {
             if let Some(option) = [
@@ -570,15 +571,14 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             } else {
                 let terms = fabric_model_terms(&mesh, &material.material);
                 bending = terms.bending;
+                uses_material = true;
                 terms.springs
             };
             let n = mesh.particle_count();
             (mesh, springs, vec![false; n])
         }
     };
-    let material = (!bending.is_empty()
-        || (springs_option.is_none() && !is_preset && mesh.tets.is_empty()))
-    .then_some(material);
+    let material = uses_material.then_some(material);
     let size_warning =
         crate::export::estimate::check_frames(frames, mesh.render_vertices.len(), job.normals)?;
     for (flag, extra) in pinned.iter_mut().zip(pinned_flags(&mesh, &job.pins)?) {

@@ -335,18 +335,17 @@ impl FastSolver {
         }
         let springs = (&self.ends[..], &self.hkl[..], &self.hk[..]);
         springs_scalar(x, r, springs, &self.soft, &self.jam_hkl, done);
+        let h2 = self.sys.params.time_step.powi(2);
         let an = &self.sys.anchors;
         for i in 0..an.a.len() {
             let a = an.a[i] as usize;
             let d = x[a].xyz() - an.at[i];
             let len = d.length();
             if len > 0.0 {
-                let h2 = self.sys.params.time_step.powi(2);
                 let (f, _) = spring_response(len, an.rest[i], an.k[i], an.kc[i]);
                 r[a] -= Lanes4::from_vec3(d * (h2 * f / len));
             }
         }
-        let h2 = self.sys.params.time_step.powi(2);
         bend_product(&self.sys.bends, -h2, x, true, r);
     }
 

@@ -125,8 +125,6 @@ pub struct NewtonSolver {
     steps: usize,
     /// Contact and friction terms, when there are colliders.
     penalty: Option<Penalty>,
-    /// Numeric factorisations done since construction (for reports and benchmarks).
-    factorisations: usize,
 }
 
 impl NewtonSolver {
@@ -254,7 +252,6 @@ impl NewtonSolver {
             history: None,
             steps: 0,
             penalty: None,
-            factorisations: 0,
             tolerance,
             max_iterations,
             sys,
@@ -281,11 +278,6 @@ impl NewtonSolver {
     /// Relative residuals ‖∇g‖/force scale at each iterate of the last step, first to last.
     pub fn history(&self) -> Option<&[f64]> {
         self.history.as_deref()
-    }
-
-    /// Numeric factorisations done so far.
-    pub fn factorisations(&self) -> usize {
-        self.factorisations
     }
 
     /// Stored entries of the Hessian's upper triangle.
@@ -406,7 +398,6 @@ impl NewtonSolver {
     }
 
     fn factorize(&mut self) -> Result<()> {
-        self.factorisations += 1;
         let dim = self.dx.len();
         let pattern =
             SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx);
