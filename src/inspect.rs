@@ -256,7 +256,7 @@ fn name_or_index(name: Option<&str>, index: usize) -> String {
 /// [`Error::Io`] or [`Error::Gltf`] when the file cannot be loaded.
 pub fn inspect(path: &Path) -> Result<Inspection> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
-    let (doc, buffers, _) = crate::io::gltf_import::import_gltf_for_inspection(path)?;
+    let (doc, buffers) = crate::io::gltf_import::import_gltf_for_inspection(path)?;
     let quantized = doc
         .extensions_required()
         .any(|e| e == crate::export::basis::KHR_MESH_QUANTIZATION);
@@ -270,7 +270,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             _ => None,
         })
         .sum();
-    let data = |b: gltf::Buffer<'_>| buffers.get(b.index()).map(|d| &d.0[..]);
+    let data = |b: gltf::Buffer<'_>| buffers.get(b.index()).map(|d| &d[..]);
     let mut checks = Vec::new();
 
     let mut meshes = Vec::new();

@@ -44,7 +44,7 @@ impl RigDocument {
     /// # Errors
     /// [`Error::Io`] when unreadable, [`Error::Gltf`] when not valid glTF.
     pub fn load(path: &Path) -> Result<Self> {
-        let (document, buffers, _) = crate::io::gltf_import::import_gltf(path)?;
+        let (document, buffers) = crate::io::gltf_import::import_gltf(path)?;
         let mut root = document.into_json();
         let mut bin = Vec::new();
         let mut offsets = Vec::with_capacity(buffers.len());

@@ -11,18 +11,17 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
-/// A loaded document with its buffers and images.
-pub type Imported = (
-    gltf::Document,
-    Vec<gltf::buffer::Data>,
-    Vec<gltf::image::Data>,
-);
+/// A loaded document with the bytes of each of its buffers (`buffers[i]` is `buffers[i]` of the
+/// document, at least `byteLength` long). Images are not decoded: nothing here reads pixels.
+pub type Imported = (gltf::Document, Vec<Vec<u8>>);
 
-/// Loads a `.gltf` or `.glb` with its buffers and images.
+/// Loads a `.gltf` or `.glb` with its buffers (the GLB binary chunk, `data:` URIs, files beside
+/// it).
 ///
 /// # Errors
 /// [`Error::Io`] for an unreadable file, [`Error::InvalidInput`] naming the element for the
-/// hazards above, [`Error::Gltf`] for everything the `gltf` crate rejects.
+/// hazards above and for short or undecodable buffers, [`Error::Gltf`] for everything the `gltf`
+/// crate rejects.
 pub fn import_gltf(path: &Path) -> Result<Imported> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if let Ok(unchecked) = gltf::Gltf::from_slice_without_validation(&bytes) {
@@ -30,24 +29,12 @@ pub fn import_gltf(path: &Path) -> Result<Imported> {
         check_image_sources(path, &unchecked)?;
         check_external_files(path, &unchecked)?;
     }
-    let base = path.parent().unwrap_or(Path::new(""));
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|error| Error::Gltf {
         path: path.into(),
         error,
     })?;
-    let buffers =
-        gltf::import_buffers(&gltf.document, Some(base), gltf.blob.clone()).map_err(|error| {
-            Error::Gltf {
-                path: path.into(),
-                error,
-            }
-        })?;
-    let images =
-        gltf::import_images(&gltf.document, Some(base), &buffers).map_err(|error| Error::Gltf {
-            path: path.into(),
-            error,
-        })?;
-    Ok((gltf.document, buffers, images))
+    let buffers = load_buffers(path, &gltf)?;
+    Ok((gltf.document, buffers))
 }
 
 /// As [`import_gltf`], but also accepts files that require KHR_mesh_quantization (which the
@@ -93,21 +80,52 @@ pub fn import_gltf_for_inspection(path: &Path) -> Result<Imported> {
             error: gltf::Error::Validation(errors),
         });
     }
-    let base = path.parent().unwrap_or(Path::new(""));
-    let gltf = unchecked;
-    let buffers =
-        gltf::import_buffers(&gltf.document, Some(base), gltf.blob.clone()).map_err(|error| {
-            Error::Gltf {
-                path: path.into(),
-                error,
+    let buffers = load_buffers(path, &unchecked)?;
+    Ok((unchecked.document, buffers))
+}
+
+/// The bytes of every buffer of `gltf` (loaded from `path`): the GLB binary chunk, a base64
+/// `data:` URI, or a file beside the glTF.
+fn load_buffers(path: &Path, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>> {
+    use base64::Engine as _;
+    let mut out = Vec::new();
+    for buffer in gltf.document.buffers() {
+        let i = buffer.index();
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
+                Error::invalid(
+                    path,
+                    format!("buffer {i} refers to the GLB binary chunk, but the file has none"),
+                )
+            })?,
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                let (_, payload) = uri.split_once(";base64,").ok_or_else(|| {
+                    Error::invalid(path, format!("buffer {i}: a data URI that is not base64"))
+                })?;
+                base64::engine::general_purpose::STANDARD
+                    .decode(payload)
+                    .map_err(|e| {
+                        Error::invalid(path, format!("buffer {i}: invalid base64 data ({e})"))
+                    })?
             }
-        })?;
-    let images =
-        gltf::import_images(&gltf.document, Some(base), &buffers).map_err(|error| Error::Gltf {
-            path: path.into(),
-            error,
-        })?;
-    Ok((gltf.document, buffers, images))
+            gltf::buffer::Source::Uri(uri) => {
+                let file = uri_path(path, uri);
+                std::fs::read(&file).map_err(|e| Error::io(&file, e))?
+            }
+        };
+        if data.len() < buffer.length() {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "buffer {i} has {} bytes, but its byteLength is {}",
+                    data.len(),
+                    buffer.length()
+                ),
+            ));
+        }
+        out.push(data);
+    }
+    Ok(out)
 }
 
 fn check_position_accessors(path: &Path, gltf: &gltf::Gltf) -> Result<()> {

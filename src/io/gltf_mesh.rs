@@ -20,7 +20,7 @@ use crate::mesh::{drop_degenerate, Mesh, RenderVertex};
 /// [`Error::Gltf`] when the file cannot be loaded; [`Error::InvalidInput`] when the mesh is
 /// missing, has no triangles, or holds non-finite positions.
 pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
-    let (doc, buffers, _) = import_gltf(path)?;
+    let (doc, buffers) = import_gltf(path)?;
     let gmesh = match name {
         Some(name) => doc
             .meshes()
@@ -61,7 +61,7 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
             skipped_primitives += 1;
             continue;
         }
-        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
         let Some(positions) = reader.read_positions() else {
             skipped_primitives += 1;
             continue;
