@@ -41,7 +41,7 @@ fn settled(name: &'static str, input: &str, solver: SolverKind, table: ColliderS
     let mut job = ClothJob::new(ClothSource::File(path), PathBuf::from("unused.glb"));
     job.solver = solver;
     job.frames = Some(30);
-    job.colliders = vec![table];
+    job.collider = vec![table];
     if input == "tableCloth.obj" {
         job.stiffness = Some(100.0);
         job.density = Some(0.5);

@@ -52,7 +52,7 @@ fn cases(frames: usize) -> Vec<Case> {
     for (name, file, pin) in skirts {
         let base = || {
             let mut job = ClothJob::new(ClothSource::File(garment(file)), "unused.glb".into());
-            job.pins = vec![pin.parse::<PinSpec>().unwrap()];
+            job.pin = vec![pin.parse::<PinSpec>().unwrap()];
             job
         };
         add(format!("{name} cotton newton 0.1 (default)"), base());
@@ -69,15 +69,15 @@ fn cases(frames: usize) -> Vec<Case> {
         add(format!("{name} labs' springs 1000/2 newton 0.1"), job);
         // Dropped, unpinned, onto a sphere below its waist.
         let mut job = base();
-        job.pins.clear();
-        job.colliders = vec!["sphere:0,0.55,0,0.3".parse::<ColliderSpec>().unwrap()];
+        job.pin.clear();
+        job.collider = vec!["sphere:0,0.55,0,0.3".parse::<ColliderSpec>().unwrap()];
         add(format!("{name} cotton newton 0.1 dropped on a sphere"), job);
     }
     let mut job = ClothJob::new(
         ClothSource::File(garment("dress_draped.obj")),
         "unused.glb".into(),
     );
-    job.colliders = vec![ColliderSpec::Mesh(garment("mannequin.obj"))];
+    job.collider = vec![ColliderSpec::Mesh(garment("mannequin.obj"))];
     add("dress on mannequin cotton newton 0.1".into(), job);
     // The dress is judged after 30 frames, whatever FRAMES says.
     if let Some(dress) = out.last_mut() {

@@ -11,8 +11,9 @@ use std::f64::consts::TAU;
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use scenebake::bake::{bake_ik, IkJob};
 use scenebake::glam::DVec3;
-use scenebake::ik::{bake_ik, Ccd, Chain, Constraints, Fabrik, IkJob, IkSolver};
+use scenebake::ik::{Ccd, Chain, Constraints, Fabrik, IkSolver};
 
 fn circle() -> Vec<DVec3> {
     (0..150)
@@ -95,7 +96,7 @@ fn fox(c: &mut Criterion) {
         .iter()
         .map(|t| DVec3::from_array(*t))
         .collect();
-    let rc = scenebake::ik::rig::RigDocument::load(&rig)
+    let rc = scenebake::io::rig::RigDocument::load(&rig)
         .unwrap()
         .chain("b_Spine01_02..b_Head_05")
         .unwrap();
@@ -132,7 +133,7 @@ fn text_bake(c: &mut Criterion) {
     let text = "THE QUICK BROWN FOX JUMPS OVER 12 DOGS!?";
     assert_eq!(text.len(), 40);
     let job = IkJob {
-        preset: Some("lab-arm".into()),
+        preset: Some(scenebake::bake::ik::IkPreset::LabArm),
         text: Some(text.into()),
         output: dir.path().join("text.glb"),
         ..Default::default()

@@ -9,13 +9,14 @@
 
 use std::path::PathBuf;
 
-use scenebake::ik::{bake_ik, IkJob, SolverKind};
+use scenebake::bake::{bake_ik, IkJob};
+use scenebake::ik::SolverKind;
 use scenebake::path::CurveKind;
 
-fn main() -> scenebake::Result<()> {
+fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "exports".into()));
     let lab = IkJob {
-        preset: Some("lab-arm".into()),
+        preset: Some(scenebake::bake::ik::IkPreset::LabArm),
         ..Default::default()
     };
     let jobs = [
@@ -72,6 +73,10 @@ fn main() -> scenebake::Result<()> {
     ];
     for job in &jobs {
         let r = bake_ik(job, &mut |_, _| {})?;
+        // The library returns the report; writing it is the caller's choice.
+        if let Some(path) = &job.report {
+            std::fs::write(path, serde_json::to_vec_pretty(&r)?)?;
+        }
         println!(
             "{}: {} joints, {} frames, solver {}, reached {}, unreachable {}, mean iterations {:.2}, max error {:.2e}, {:.1} ms",
             job.output.display(),

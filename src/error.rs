@@ -4,67 +4,66 @@
 //! option, and what was wrong. Messages are lowercase with no trailing period; the binary prints
 //! them behind `error:`.
 
+use std::fmt;
 use std::path::PathBuf;
+
+use crate::param::{scene_key, Param, Text, Vocabulary};
 
 /// Result alias used throughout the library.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Everything that can go wrong while loading, simulating or writing.
-#[derive(Debug, thiserror::Error)]
+///
+/// Variants that concern a job parameter carry it as a [`Param`]; [`Error::render`] names it in
+/// the caller's vocabulary (the binary's `--flag`), `Display` as its scene key.
+#[derive(Debug)]
 #[non_exhaustive]
 pub enum Error {
     /// A file could not be opened, read or written.
-    #[error("{path}: {error}")]
     Io {
         /// The file involved.
         path: PathBuf,
-        /// The operating system's error (already part of the message).
-        error: std::io::Error,
+        /// The operating system's error.
+        source: std::io::Error,
     },
     /// A file's content could not be understood.
-    #[error("{path}{}: {message}", location_suffix(*.line))]
     Parse {
         /// The file involved.
         path: PathBuf,
         /// One-based line number, when the format is line-oriented.
         line: Option<usize>,
         /// What was wrong.
-        message: String,
+        message: Text,
     },
     /// The input is readable but unusable (no faces, index out of range, non-finite value...).
-    #[error("{path}: {message}")]
     InvalidInput {
         /// The file (or preset name) involved.
         path: PathBuf,
         /// What was wrong, naming the element.
-        message: String,
+        message: Text,
     },
     /// A triangle mesh given as a collider is unusable.
-    #[error("collider mesh{}: {problem}", path_suffix(path.as_deref()))]
     ColliderMesh {
         /// The mesh file, when the mesh came from one.
         path: Option<PathBuf>,
         /// What is wrong, naming the element.
         problem: ColliderMeshProblem,
     },
-    /// A character of `--text` that the font has no glyph for.
-    #[error("--text: font `{font}` has no glyph for {glyph:?} (U+{:04X})", u32::from(*glyph))]
+    /// A character of the text that the font has no glyph for.
     UnknownGlyph {
         /// The font's name (built-in name or file path).
         font: String,
         /// The character.
         glyph: char,
     },
-    /// A command-line option or scene-file key has an invalid value.
-    #[error("invalid value for {option}: {message}")]
-    InvalidOption {
-        /// The option, as the user spelled it (`--pin`, `--frames`...).
-        option: String,
+    /// A job parameter has an invalid value, or does not go with the others given.
+    Param {
+        /// The parameter.
+        param: Param,
         /// What was wrong with the value, and the expected form.
-        message: String,
+        message: Text,
     },
     /// A pin specification selected no particle.
-    #[error("--pin {spec}: selects no particle{hint}")]
     EmptyPin {
         /// The pin specification as given.
         spec: String,
@@ -72,10 +71,6 @@ pub enum Error {
         hint: String,
     },
     /// The simulation produced non-finite or exploding positions.
-    #[error(
-        "simulation diverged at frame {frame} ({reason}); try a smaller time step \
-         (more --substeps or a higher --fps), lower --stiffness, or more --iterations"
-    )]
     Diverged {
         /// The first frame whose state was unusable (1-based, frame 0 is the input pose).
         frame: usize,
@@ -83,37 +78,31 @@ pub enum Error {
         reason: String,
     },
     /// The sparse Cholesky factorisation failed (matrix not positive definite).
-    #[error("sparse factorisation failed: {0}")]
     Factorisation(String),
     /// A glTF document could not be loaded.
-    #[error("{path}: {}", describe_gltf(error))]
     Gltf {
         /// The file involved.
         path: PathBuf,
-        /// The `gltf` crate's error (already part of the message).
-        error: gltf::Error,
+        /// The `gltf` crate's error.
+        source: gltf::Error,
     },
     /// A glTF document could not be serialised.
-    #[error("{path}: cannot serialise glTF JSON: {error}")]
     Json {
         /// The output file.
         path: PathBuf,
-        /// The serialiser's error (already part of the message).
-        error: serde_json::Error,
+        /// The serialiser's error.
+        source: serde_json::Error,
     },
     /// An inverse-kinematics chain could not be built.
-    #[error("{0}")]
     Chain(String),
-    /// A `--chain` end names no node of the rig.
-    #[error("{path}: --chain: no node named `{joint}` (use a node name, `#N` for node N, quoted in a shell as in '#13..#15', or Blender's `Node_N`; `scenebake inspect {}` lists them)", .path.display())]
+    /// A chain end names no node of the rig.
     UnknownJoint {
         /// The rig file.
         path: PathBuf,
         /// The joint as given.
         joint: String,
     },
-    /// The `--chain` tip is not a descendant of the chain root.
-    #[error("{path}: --chain {root}..{tip}: `{tip}` is not below `{root}` in the node hierarchy")]
+    /// The chain's tip is not a descendant of the chain root.
     JointNotBelow {
         /// The rig file.
         path: PathBuf,
@@ -123,13 +112,131 @@ pub enum Error {
         tip: String,
     },
     /// An export could not be written because its data is inconsistent or too large.
-    #[error("{path}: {message}")]
     Export {
         /// The output file.
         path: PathBuf,
         /// What was wrong.
+        message: Text,
+    },
+    /// A scene file is malformed: unknown keys, wrong types, no jobs.
+    Scene {
+        /// The scene file.
+        path: PathBuf,
+        /// The job (`[[cloth]]` number or name), when the problem is inside one.
+        job: Option<String>,
+        /// What was wrong.
         message: String,
     },
+}
+
+impl Error {
+    /// The message with every parameter named by `vocabulary` (the binary passes its `--flag`
+    /// spellings); causes are included.
+    pub fn render(&self, vocabulary: Vocabulary<'_>) -> String {
+        let v = vocabulary;
+        match self {
+            Error::Io { path, source } => format!("{}: {source}", path.display()),
+            Error::Parse {
+                path,
+                line,
+                message,
+            } => format!(
+                "{}{}: {}",
+                path.display(),
+                location_suffix(*line),
+                message.render(v)
+            ),
+            Error::InvalidInput { path, message } | Error::Export { path, message } => {
+                format!("{}: {}", path.display(), message.render(v))
+            }
+            Error::ColliderMesh { path, problem } => {
+                format!("collider mesh{}: {problem}", path_suffix(path.as_deref()))
+            }
+            Error::UnknownGlyph { font, glyph } => format!(
+                "{}: font `{font}` has no glyph for {glyph:?} (U+{:04X})",
+                v(Param::Text),
+                u32::from(*glyph)
+            ),
+            Error::Param { param, message } => {
+                format!("invalid value for {}: {}", v(*param), message.render(v))
+            }
+            Error::EmptyPin { spec, hint } => {
+                format!("{} {spec}: selects no particle{hint}", v(Param::Pin))
+            }
+            Error::Diverged { frame, reason } => format!(
+                "simulation diverged at frame {frame} ({reason}); try a smaller time step \
+                 (more {} or a higher {}), lower {}, or more {}",
+                v(Param::Substeps),
+                v(Param::Fps),
+                v(Param::Stiffness),
+                v(Param::Iterations)
+            ),
+            Error::Factorisation(m) => format!("sparse factorisation failed: {m}"),
+            Error::Gltf { path, source } => {
+                format!("{}: {}", path.display(), describe_gltf(source))
+            }
+            Error::Json { path, source } => {
+                format!("{}: cannot serialise glTF JSON: {source}", path.display())
+            }
+            Error::Chain(m) => m.clone(),
+            Error::UnknownJoint { path, joint } => format!(
+                "{}: {}: no node named `{joint}` (use a node name, `#N` for node N, quoted in a \
+                 shell as in '#13..#15', or Blender's `Node_N`; `scenebake inspect {}` lists \
+                 them)",
+                path.display(),
+                v(Param::Chain),
+                path.display()
+            ),
+            Error::JointNotBelow { path, root, tip } => format!(
+                "{}: {} {root}..{tip}: `{tip}` is not below `{root}` in the node hierarchy",
+                path.display(),
+                v(Param::Chain)
+            ),
+            Error::Scene { path, job, message } => match job {
+                Some(job) => format!("{}: {job}: {message}", path.display()),
+                None => format!("{}: {message}", path.display()),
+            },
+        }
+    }
+
+    /// What is wrong, without the "invalid value for …" lead of a [`Error::Param`] (for front
+    /// ends that name the option themselves); parameters named by their scene keys.
+    pub fn detail(&self) -> String {
+        match self {
+            Error::Param { message, .. } => message.to_string(),
+            other => other.to_string(),
+        }
+    }
+
+    /// The parameter the error is about, when it is about one.
+    pub fn param(&self) -> Option<Param> {
+        match self {
+            Error::Param { param, .. } => Some(*param),
+            Error::EmptyPin { .. } => Some(Param::Pin),
+            Error::UnknownGlyph { .. } => Some(Param::Text),
+            Error::UnknownJoint { .. } | Error::JointNotBelow { .. } => Some(Param::Chain),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    /// The message with parameters named by their scene keys.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.render(&scene_key))
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            Error::Gltf { source, .. } => Some(source),
+            Error::Json { source, .. } => Some(source),
+            Error::ColliderMesh { problem, .. } => Some(problem),
+            _ => None,
+        }
+    }
 }
 
 /// The `gltf` crate's errors in words a user can act on.
@@ -202,22 +309,22 @@ impl Error {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            error: source,
+            source,
         }
     }
 
     /// Shorthand for [`Error::InvalidInput`].
-    pub fn invalid(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+    pub fn invalid(path: impl Into<PathBuf>, message: impl Into<Text>) -> Self {
         Error::InvalidInput {
             path: path.into(),
             message: message.into(),
         }
     }
 
-    /// Shorthand for [`Error::InvalidOption`].
-    pub fn option(option: impl Into<String>, message: impl Into<String>) -> Self {
-        Error::InvalidOption {
-            option: option.into(),
+    /// Shorthand for [`Error::Param`].
+    pub fn param_value(param: Param, message: impl Into<Text>) -> Self {
+        Error::Param {
+            param,
             message: message.into(),
         }
     }

@@ -509,7 +509,7 @@ where
         let lo = off.iter().copied().fold(f32::MAX, f32::min);
         let hi = off.iter().copied().fold(f32::MIN, f32::max);
         format!(
-            " ({} of {} vertices sum to {lo:.3}–{hi:.3}; `scenebake ik --rig` renormalises them)",
+            " ({} of {} vertices sum to {lo:.3}–{hi:.3}; an IK bake with this file as its rig renormalises them)",
             off.len(),
             sums.len()
         )

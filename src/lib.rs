@@ -7,14 +7,18 @@
 
 pub mod bake;
 pub mod cloth;
+pub mod data;
 pub mod error;
 pub mod export;
 pub mod ik;
 pub mod inspect;
 pub mod io;
 pub mod mesh;
+pub mod param;
 pub mod path;
+pub mod scene;
 pub mod spec;
 
 pub use error::{Error, Result};
 pub use glam;
+pub use param::{Param, Text};

@@ -243,7 +243,7 @@ fn auto_basis_plays_every_frame_within_the_tolerance_with_few_targets() {
 
     // Much smaller than one target per frame.
     let mut full = lab_job(&dir.path().join("full.glb"), frames);
-    full.normals = true;
+    full.normals = scenebake::bake::cloth::Switch::On;
     let rf = bake_cloth(&full, &mut |_, _| {}).unwrap();
     assert!(
         report.output_bytes * 5 < rf.output_bytes,

@@ -30,7 +30,7 @@ fn half_pinned_plane(out: &Path, frames: usize) -> ClothJob {
         out.to_path_buf(),
     );
     job.frames = Some(frames);
-    job.pins = vec!["box:-1,-1,-1,1,1,0.0".parse().unwrap()];
+    job.pin = vec!["box:-1,-1,-1,1,1,0.0".parse().unwrap()];
     job
 }
 
@@ -94,7 +94,7 @@ fn step_interpolation_reduction_holds_frames_within_tolerance() {
     let mut job = lab_job(&out, frames);
     job.keyframe_tolerance = Some(tolerance);
     job.interpolation = Interpolation::Step;
-    job.normals = false;
+    job.normals = scenebake::bake::cloth::Switch::Off;
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     assert!(report.cache.stats.kept_frames.len() < frames + 1);
     let (mesh, sim) = reference(&job);

@@ -142,7 +142,7 @@ fn dropped_sheet_rests_on_a_tilted_ground_without_drifting() {
     let offset = -0.15;
     for solver_kind in SOLVERS {
         let mut job = job("plane_30x30.obj", solver_kind, 150);
-        job.colliders = vec![ColliderSpec::Plane(normal, offset)];
+        job.collider = vec![ColliderSpec::Plane(normal, offset)];
         job.friction = 0.6;
         job.damping = Some(1.0);
         job.stiffness = Some(200.0);
@@ -188,7 +188,7 @@ fn sheet_over_a_sphere_never_penetrates() {
     };
     for solver_kind in SOLVERS {
         let mut job = job("plane_30x30.obj", solver_kind, 60);
-        job.colliders = vec![ColliderSpec::Sphere(ball.centre, ball.radius)];
+        job.collider = vec![ColliderSpec::Sphere(ball.centre, ball.radius)];
         let (cache, params, _) = bake(&job);
         let approach = closest_approach(&cache, &params.colliders.shapes[0]);
         assert!(
@@ -242,7 +242,7 @@ fn tablecloth_drapes_over_a_table() {
         } else {
             table
         };
-        job.colliders = vec![ColliderSpec::Box(table.min, table.max)];
+        job.collider = vec![ColliderSpec::Box(table.min, table.max)];
         let (cache, params, _) = bake(&job);
         let shape = &params.colliders.shapes[0];
         let approach = closest_approach(&cache, shape);
@@ -281,7 +281,7 @@ fn flag_in_the_wind_keeps_moving_with_bounded_energy() {
     let wind = DVec3::new(6.0, 0.0, 0.0);
     for (solver_kind, frames) in [(SolverKind::Fast, 240), (SolverKind::Newton, 90)] {
         let mut job = job("square_dense.obj", solver_kind, frames);
-        job.pins = vec!["box:-0.01,-1,-1,0.01,2,1".parse().unwrap()];
+        job.pin = vec!["box:-0.01,-1,-1,0.01,2,1".parse().unwrap()];
         job.wind = Some(wind);
         job.turbulence = 0.3;
         job.seed = 11;
@@ -357,7 +357,7 @@ fn flag_in_the_wind_keeps_moving_with_bounded_energy() {
 fn gusts_are_deterministic() {
     let run = |seed| {
         let mut job = job("square_dense.obj", SolverKind::Fast, 20);
-        job.pins = vec!["box:-0.01,-1,-1,0.01,2,1".parse().unwrap()];
+        job.pin = vec!["box:-0.01,-1,-1,0.01,2,1".parse().unwrap()];
         job.wind = Some(DVec3::new(5.0, 0.0, 0.0));
         job.turbulence = 0.5;
         job.seed = seed;
@@ -375,8 +375,8 @@ fn sheet_rests_on_the_table_mesh() {
     for solver_kind in SOLVERS {
         let mut job = job("plane_30x30.obj", solver_kind, 20);
         job.scale = 1.6;
-        job.translate = DVec3::new(0.0, 0.9, 0.0);
-        job.colliders = vec![ColliderSpec::Mesh(mesh_path("table.obj"))];
+        job.translate = Some(DVec3::new(0.0, 0.9, 0.0));
+        job.collider = vec![ColliderSpec::Mesh(mesh_path("table.obj"))];
         job.stiffness = Some(200.0);
         job.density = Some(0.5);
         job.max_newton = 20;

@@ -97,7 +97,7 @@ fn plane_export_reproduces_the_simulation_frame_by_frame() {
     let out = dir.path().join("plane.glb");
     let mut job = ClothJob::new(ClothSource::File(mesh_path("plane_30x30.obj")), out.clone());
     job.frames = Some(24);
-    job.pins = vec!["box:-1,-1,-1,1,1,-0.49".parse().unwrap()];
+    job.pin = vec!["box:-1,-1,-1,1,1,-0.49".parse().unwrap()];
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     assert_eq!(report.frames, 24);
     assert_eq!(report.pinned, 31, "one edge of the 31×31 grid");
@@ -158,7 +158,7 @@ fn uvs_are_carried_over_from_the_obj() {
     let mut job = ClothJob::new(ClothSource::File(mesh_path("cloth_z_up.obj")), out.clone());
     job.frames = Some(3);
     job.gravity = Some(scenebake::glam::DVec3::new(0.0, 0.0, -9.81));
-    job.pins = vec!["index:0".parse().unwrap()];
+    job.pin = vec!["index:0".parse().unwrap()];
     bake_cloth(&job, &mut |_, _| {}).unwrap();
     assert!(
         dir.path().join("cloth.bin").exists(),
@@ -205,7 +205,7 @@ fn step_interpolation_and_no_normals_are_honoured() {
     let mut job = ClothJob::new(ClothSource::LabCloth { resolution: 10 }, out.clone());
     job.frames = Some(5);
     job.interpolation = scenebake::export::Interpolation::Step;
-    job.normals = false;
+    job.normals = scenebake::bake::cloth::Switch::Off;
     bake_cloth(&job, &mut |_, _| {}).unwrap();
     let (doc, _, _) = gltf::import(&out).unwrap();
     let sampler = doc.animations().next().unwrap().samplers().next().unwrap();

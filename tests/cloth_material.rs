@@ -117,7 +117,7 @@ fn the_same_fabric_moves_alike_on_a_coarse_and_a_fine_irregular_mesh() {
         let mesh = sheet(dir.path(), name, cells, jitter);
         let mut job = ClothJob::new(ClothSource::File(mesh), dir.path().join("x.glb"));
         job.frames = Some(60);
-        job.pins = vec!["box:-0.001,0.9,-1,0.001,1.1,2".parse::<PinSpec>().unwrap()];
+        job.pin = vec!["box:-0.001,0.9,-1,0.001,1.1,2".parse::<PinSpec>().unwrap()];
         let p = prepare_cloth(&job).unwrap();
         let mut solver = make_solver(&p.model, &p.params).unwrap();
         let sim = simulate(&p.model, solver.as_mut(), &p.params, &mut |_| {}).unwrap();
@@ -144,7 +144,7 @@ fn the_tolerance_is_honoured_on_a_garment() {
         ClothSource::File(crate_path("meshes/garments/circle_skirt.obj")),
         PathBuf::from("unused.glb"),
     );
-    job.pins = vec!["box:-0.2,0.999,-0.2,0.2,1.001,0.2"
+    job.pin = vec!["box:-0.2,0.999,-0.2,0.2,1.001,0.2"
         .parse::<PinSpec>()
         .unwrap()];
     let p = prepare_cloth(&job).unwrap();

@@ -180,7 +180,7 @@ fn offset_mode_stores_the_morph_deltas() {
     let dir = tempfile::tempdir().unwrap();
     let mut job = lab_job(dir.path(), 6);
     job.vat_mode = VatMode::Offset;
-    job.normals = false;
+    job.normals = scenebake::bake::cloth::Switch::Off;
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     assert_eq!(
         report.vat.as_ref().unwrap().files.len(),
@@ -277,7 +277,7 @@ fn vat_follows_the_render_vertices_of_a_seamed_obj() {
     );
     job.frames = Some(3);
     job.gravity = Some(scenebake::glam::DVec3::new(0.0, 0.0, -9.81));
-    job.pins = vec!["index:0".parse().unwrap()];
+    job.pin = vec!["index:0".parse().unwrap()];
     job.vat = Some(dir.path().join("c.exr"));
     bake_cloth(&job, &mut |_, _| {}).unwrap();
     let m = load_morph(&dir.path().join("c.gltf"));

@@ -4,7 +4,7 @@
 mod common;
 
 use glam::DVec3;
-use scenebake::ik::{bake_ik, IkJob, IkReport};
+use scenebake::bake::{bake_ik, IkJob, IkReport};
 
 /// Pen-down runs (one per stroke) of a bake.
 fn runs(r: &IkReport) -> Vec<Vec<DVec3>> {
@@ -143,7 +143,7 @@ fn a_zero_normal_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let e = bake_ik(
         &IkJob {
-            preset: Some("lab-arm".into()),
+            preset: Some(scenebake::bake::ik::IkPreset::LabArm),
             curve: Some(scenebake::path::CurveKind::Circle),
             normal: Some(DVec3::ZERO),
             output: dir.path().join("z.glb"),

@@ -10,7 +10,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
-use scenebake::ik::{bake_ik, IkJob, IkReport};
+use scenebake::bake::{bake_ik, IkJob, IkReport};
 use scenebake::Error;
 
 const DEJAVU: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
@@ -26,7 +26,7 @@ fn dejavu() -> PathBuf {
 
 fn write(dir: &Path, name: &str, text: &str, font: &str) -> IkReport {
     let job = IkJob {
-        preset: Some("lab-arm".into()),
+        preset: Some(scenebake::bake::ik::IkPreset::LabArm),
         text: Some(text.into()),
         font: Some(font.into()),
         size: Some(0.3),
@@ -128,7 +128,7 @@ fn a_truetype_font_draws_a_non_ascii_letter() {
 fn a_glyph_the_font_lacks_is_an_error_naming_it_and_the_font() {
     let dir = tempfile::tempdir().unwrap();
     let job = |text: &str, font: &str| IkJob {
-        preset: Some("lab-arm".into()),
+        preset: Some(scenebake::bake::ik::IkPreset::LabArm),
         text: Some(text.into()),
         font: Some(font.into()),
         output: dir.path().join("x.glb"),
@@ -169,7 +169,7 @@ fn a_cursive_word_is_written_by_the_file_tip() {
     // The baked file, read back with an independent FK, puts the tip on every pen-down target.
     let dir = tempfile::tempdir().unwrap();
     let job = IkJob {
-        preset: Some("lab-arm".into()),
+        preset: Some(scenebake::bake::ik::IkPreset::LabArm),
         text: Some("writing".into()),
         font: Some("cursive".into()),
         output: dir.path().join("w.glb"),

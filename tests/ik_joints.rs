@@ -5,7 +5,8 @@ mod common;
 
 use common::{load, Loaded, Tracks};
 use glam::{DQuat, DVec3};
-use scenebake::ik::{bake_ik, IkJob, IkReport, SolverKind};
+use scenebake::bake::{bake_ik, IkJob, IkReport};
+use scenebake::ik::SolverKind;
 
 /// A 3-joint arm (shoulder joint_0 at (0, 0.785, 0), elbow joint_1, hand joint_2; two 0.6 m
 /// bones hanging down) writing a cursive word on a board in front of its chest.

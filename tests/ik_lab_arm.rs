@@ -2,9 +2,10 @@
 
 mod common;
 
-use common::{load, read_json, vec3_of};
+use common::{load, vec3_of};
 use glam::DVec3;
-use scenebake::ik::{bake_ik, IkJob, SolverKind};
+use scenebake::bake::{bake_ik, IkJob};
+use scenebake::ik::SolverKind;
 use scenebake::path::CurveKind;
 
 const OFFSETS: [[f64; 3]; 5] = [
@@ -17,9 +18,8 @@ const OFFSETS: [[f64; 3]; 5] = [
 
 fn lab_job(dir: &std::path::Path, name: &str) -> IkJob {
     IkJob {
-        preset: Some("lab-arm".into()),
+        preset: Some(scenebake::bake::ik::IkPreset::LabArm),
         output: dir.join(format!("{name}.glb")),
-        report: Some(dir.join(format!("{name}.json"))),
         ..Default::default()
     }
 }
@@ -89,7 +89,7 @@ fn fabrik_circle_tip_follows_the_lab_circle() {
         .iter()
         .fold((f64::MAX, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
     assert!(hi - lo < 1e-9, "uneven circle targets {lo}..{hi}");
-    let json = read_json(job.report.as_ref().unwrap());
+    let json = serde_json::to_value(&report).unwrap();
     assert_eq!(json["solver"], "fabrik");
     assert_eq!(json["frames"], 150);
     assert_eq!(json["joints"], 5);
@@ -196,7 +196,7 @@ fn text_bake_lifts_the_pen_and_reveals_the_trail() {
         ..lab_job(dir.path(), "hello")
     };
     let r = bake_ik(&job, &mut |_, _| {}).unwrap();
-    let json = read_json(job.report.as_ref().unwrap());
+    let json = serde_json::to_value(&r).unwrap();
     let pen: Vec<bool> = json["pen_down"]
         .as_array()
         .unwrap()

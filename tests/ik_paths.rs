@@ -5,12 +5,13 @@ mod common;
 
 use common::load;
 use glam::{DQuat, DVec3};
-use scenebake::ik::{bake_ik, IkJob, SolverKind};
+use scenebake::bake::{bake_ik, IkJob};
+use scenebake::ik::SolverKind;
 use scenebake::path::CurveKind;
 
 fn lab(dir: &std::path::Path, name: &str) -> IkJob {
     IkJob {
-        preset: Some("lab-arm".into()),
+        preset: Some(scenebake::bake::ik::IkPreset::LabArm),
         output: dir.join(format!("{name}.glb")),
         ..Default::default()
     }
@@ -113,7 +114,6 @@ fn svg_and_csv_paths_are_drawn_in_the_plane() {
     let r = bake_ik(
         &IkJob {
             svg: Some(svg),
-            report: Some(dir.path().join("svg.json")),
             ..lab(dir.path(), "svg")
         },
         &mut |_, _| {},
@@ -121,7 +121,7 @@ fn svg_and_csv_paths_are_drawn_in_the_plane() {
     .unwrap();
     assert!(r.frames > 50);
     assert_eq!(r.reached, r.frames);
-    let json = common::read_json(&dir.path().join("svg.json"));
+    let json = serde_json::to_value(&r).unwrap();
     for (t, down) in json["targets"]
         .as_array()
         .unwrap()

@@ -1,11 +1,11 @@
 //! Pen timing: `--pen-speed` with easing at stroke ends, and lifts at `--lift` height.
 
 use glam::DVec3;
-use scenebake::ik::{bake_ik, IkJob};
+use scenebake::bake::{bake_ik, IkJob};
 
 fn lab(dir: &std::path::Path, name: &str) -> IkJob {
     IkJob {
-        preset: Some("lab-arm".into()),
+        preset: Some(scenebake::bake::ik::IkPreset::LabArm),
         output: dir.join(format!("{name}.glb")),
         ..Default::default()
     }

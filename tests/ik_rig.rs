@@ -4,7 +4,8 @@ mod common;
 
 use common::load;
 use glam::DVec3;
-use scenebake::ik::{bake_ik, IkJob, SolverKind};
+use scenebake::bake::{bake_ik, IkJob};
+use scenebake::ik::SolverKind;
 use scenebake::path::CurveKind;
 use scenebake::Error;
 
@@ -408,7 +409,7 @@ fn unnormalised_weights_are_renormalised_with_a_warning() {
     let r = bake_ik(&job, &mut |_, _| {}).unwrap();
     assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
     assert!(
-        r.warnings[0].contains(
+        r.warnings[0].to_string().contains(
             "halved.gltf: renormalised the skin weights of 40 vertices (they summed to 0.500–0.500"
         ),
         "{}",

@@ -6,14 +6,15 @@
 
 use std::process::Command;
 
-use scenebake::ik::{bake_ik, IkJob, SolverKind};
+use scenebake::bake::{bake_ik, IkJob};
+use scenebake::ik::SolverKind;
 use scenebake::path::CurveKind;
 
 #[test]
 fn ik_bakes_are_validator_clean() {
     let dir = tempfile::tempdir().unwrap();
     let lab = IkJob {
-        preset: Some("lab-arm".into()),
+        preset: Some(scenebake::bake::ik::IkPreset::LabArm),
         ..Default::default()
     };
     let meshes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes");

@@ -11,8 +11,11 @@ pub mod scene;
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
+use anyhow::{anyhow, Context};
 use clap::{Parser, Subcommand};
+use indicatif::ProgressBar;
+use scenebake::scene::{Job, Report};
+use scenebake::Param;
 
 /// Bake cloth simulations and IK animations offline into glTF files for Blender and game engines.
 #[derive(Debug, Parser)]
@@ -55,100 +58,94 @@ pub struct Outcome {
     pub frames: usize,
     /// Wall time, seconds.
     pub seconds: f64,
-    /// Bytes written.
+    /// Bytes written (report excluded).
     pub bytes: u64,
     /// Every file written (report excluded) with its size in bytes.
     pub files: Vec<(PathBuf, u64)>,
     /// The job's own report.
-    pub report: serde_json::Value,
+    pub report: Report,
+}
+
+/// How the command line names a parameter: `--max-iterations`, or `INPUT` for the positional
+/// input file.
+pub fn flag(param: Param) -> String {
+    match param {
+        Param::Input => "INPUT".into(),
+        p => format!("--{}", p.key().replace('_', "-")),
+    }
+}
+
+/// A library error in the command line's words.
+pub fn cli_error(e: scenebake::Error) -> anyhow::Error {
+    anyhow!(e.render(&flag))
 }
 
 /// Runs one parsed command.
 pub fn execute(cli: &Cli) -> anyhow::Result<()> {
     match &cli.command {
-        Command::Cloth(args) => {
-            let outcome = run_cloth(args, "cloth", cli.quiet)?;
-            if !cli.quiet {
-                eprintln!("{}", summary_line(&outcome));
-            }
-            print_warnings(&outcome);
-            Ok(())
-        }
-        Command::Ik(args) => {
-            let outcome = run_ik(args, "ik", cli.quiet)?;
-            if !cli.quiet {
-                eprintln!("{}", summary_line(&outcome));
-            }
-            print_warnings(&outcome);
-            Ok(())
-        }
+        Command::Cloth(args) => run_single(Job::Cloth(Box::new(args.job.clone())), cli.quiet),
+        Command::Ik(args) => run_single(Job::Ik(Box::new(args.job.clone())), cli.quiet),
         Command::Run(args) => scene::run(args, cli.quiet),
         Command::Inspect(args) => inspect::run(args),
         Command::Open(args) => open::run(args),
     }
 }
 
-/// Bakes one cloth job with a progress bar; writes its report when asked.
-pub fn run_cloth(args: &cloth::ClothArgs, label: &str, quiet: bool) -> anyhow::Result<Outcome> {
-    let job = args.job();
-    let frames = job
-        .frames
-        .unwrap_or(scenebake::bake::cloth::defaults::FRAMES) as u64;
-    let bar = progress::bar(label, frames, quiet);
-    let start = std::time::Instant::now();
-    let report = scenebake::bake::bake_cloth(&job, &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    });
-    bar.finish_and_clear();
-    let report = report?;
-    let json = serde_json::to_value(&report)?;
-    if let Some(path) = &args.report {
-        write_report(path, &json)?;
+/// `scenebake cloth` / `scenebake ik`: one job, errors and warnings in `--flag` words.
+fn run_single(job: Job, quiet: bool) -> anyhow::Result<()> {
+    let name = match &job {
+        Job::Cloth(j) => j.display_name(),
+        Job::Ik(j) => j.display_name(),
+    };
+    let bar = progress::bar(job.kind(), job.frames_hint().unwrap_or(1) as u64, quiet);
+    let outcome = run_job(&job, &name, &bar).map_err(|e| match e {
+        JobError::Bake(e) => cli_error(e),
+        JobError::Other(e) => e,
+    })?;
+    if !quiet {
+        eprintln!("{}", summary_line(&outcome));
     }
-    Ok(Outcome {
-        kind: "cloth",
-        name: args.name.clone().unwrap_or_else(|| report.input.clone()),
-        output: job.output.clone(),
-        frames: report.frames,
-        seconds: start.elapsed().as_secs_f64(),
-        bytes: report.output_bytes,
-        files: sizes(&report.output),
-        report: json,
-    })
+    for w in outcome.report.warnings() {
+        eprintln!("warning: {}: {}", outcome.name, w.render(&flag));
+    }
+    Ok(())
 }
 
-/// Bakes one IK job with a progress bar (the library writes its report when asked).
-pub fn run_ik(args: &ik::IkArgs, label: &str, quiet: bool) -> anyhow::Result<Outcome> {
-    let job = args.job()?;
-    let bar = progress::bar(label, 1, quiet);
+/// Why a job failed: the bake (a library error, to be worded by the caller) or writing its
+/// report.
+pub enum JobError {
+    /// The library's error.
+    Bake(scenebake::Error),
+    /// Anything else.
+    Other(anyhow::Error),
+}
+
+/// Bakes one job, moving `bar`; writes its report when asked.
+pub fn run_job(job: &Job, name: &str, bar: &ProgressBar) -> Result<Outcome, JobError> {
     let start = std::time::Instant::now();
-    let report = scenebake::ik::bake::bake_ik(&job, &mut |done, total| {
+    let report = job.run(&mut |done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     });
     bar.finish_and_clear();
-    let report = report?;
-    let written: Vec<PathBuf> = report
-        .files
-        .iter()
-        .filter(|f| Some(f.as_path()) != job.report.as_deref())
-        .cloned()
-        .collect();
+    let report = report.map_err(JobError::Bake)?;
+    if let Some(path) = job.report_path() {
+        write_report(path, &report).map_err(JobError::Other)?;
+    }
+    let written = match &report {
+        Report::Cloth(r) => r.output.clone(),
+        Report::Ik(r) => r.files.clone(),
+    };
     let files = sizes(&written);
-    let bytes = files.iter().map(|(_, b)| b).sum();
     Ok(Outcome {
-        kind: "ik",
-        name: args
-            .name
-            .clone()
-            .unwrap_or_else(|| job.output.display().to_string()),
-        output: job.output.clone(),
-        frames: report.frames,
+        kind: job.kind(),
+        name: name.to_owned(),
+        output: job.output().to_path_buf(),
+        frames: report.frames(),
         seconds: start.elapsed().as_secs_f64(),
-        bytes,
+        bytes: files.iter().map(|(_, b)| b).sum(),
         files,
-        report: serde_json::to_value(&report)?,
+        report,
     })
 }
 
@@ -173,57 +170,50 @@ pub fn files_with_sizes(o: &Outcome) -> String {
 }
 
 /// Writes a JSON report atomically.
-pub fn write_report(path: &Path, value: &serde_json::Value) -> anyhow::Result<()> {
+pub fn write_report(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
     let bytes = serde_json::to_vec_pretty(value)?;
     scenebake::export::atomic::write_atomically(path, bytes)
-        .with_context(|| "cannot write the report".to_string())
+        .map_err(cli_error)
+        .context("cannot write the report")
 }
 
-/// Prints the report's `warnings` on standard error, one line each (also with `--quiet`: a
-/// step above its tolerance or a repaired input is never silent).
-pub fn print_warnings(o: &Outcome) {
-    if let Some(list) = o.report["warnings"].as_array() {
-        for w in list.iter().filter_map(|w| w.as_str()) {
-            eprintln!("warning: {}: {w}", o.name);
-        }
+/// Prints a scene job's warnings, parameters named by their scene keys (also with `--quiet`).
+pub fn print_scene_warnings(o: &Outcome) {
+    for w in o.report.warnings() {
+        eprintln!("warning: {}: {w}", o.name);
     }
 }
 
 /// The one-line summary printed after a job.
 pub fn summary_line(o: &Outcome) -> String {
-    let r = &o.report;
-    let extra = match o.kind {
-        "cloth" => format!(
-            " ({} particles, {} springs, {} pinned; {:.2} ms/frame; {} of {} frames within \
-             tolerance {})",
-            r["particles"],
-            r["springs"],
-            r["pinned"],
-            r["ms_per_frame"].as_f64().unwrap_or(0.0),
-            o.frames
-                - r["unconverged_frames"]
-                    .as_array()
-                    .map_or(0, |a| a.len())
-                    .min(o.frames),
-            o.frames,
-            r["tolerance"]
+    let extra = match &o.report {
+        Report::Cloth(r) => {
+            let mut extra = format!(
+                " ({} particles, {} springs, {} pinned; {:.2} ms/frame; {} of {} frames within \
+                 tolerance {})",
+                r.particles,
+                r.springs,
+                r.pinned,
+                r.ms_per_frame,
+                r.frames - r.unconverged_frames.len().min(r.frames),
+                r.frames,
+                r.tolerance
+            );
+            if let Some(b) = &r.cache.basis {
+                extra += &format!(
+                    "; basis {} targets, max error {:.3} mm, positions {}",
+                    b.targets,
+                    1e3 * b.max_error,
+                    b.quantization.positions
+                );
+            }
+            extra
+        }
+        Report::Ik(r) => format!(
+            " ({} joints, {} solver, {} of {} targets reached, {} unreachable, {:.1} \
+             iterations/frame)",
+            r.joints, r.solver, r.reached, r.frames, r.unreachable, r.mean_iterations
         ),
-        "ik" => format!(
-            " ({} joints, {} solver, {} of {} targets reached, {} unreachable, {:.1} iterations/frame)",
-            r["joints"], r["solver"].as_str().unwrap_or(""), r["reached"], o.frames, r["unreachable"], r["mean_iterations"].as_f64().unwrap_or(0.0)
-        ),
-        _ => String::new(),
-    };
-    let basis = &r["cache"]["basis"];
-    let extra = if basis.is_object() {
-        format!(
-            "{extra}; basis {} targets, max error {:.3} mm, positions {}",
-            basis["targets"],
-            1e3 * basis["max_error"].as_f64().unwrap_or(0.0),
-            basis["quantization"]["positions"].as_str().unwrap_or("")
-        )
-    } else {
-        extra
     };
     format!(
         "{}: baked {} frames{} in {:.2} s; wrote {}",

@@ -1,22 +1,28 @@
-//! `scenebake run SCENE.toml`: scene files whose jobs use the command line's own vocabulary.
+//! `scenebake run SCENE.toml`: the jobs of a scene file (parsed by [`scenebake::scene`]), run on
+//! several cores at once.
 //!
-//! Each `[[cloth]]` or `[[ik]]` table is turned into the arguments of `scenebake cloth` / `ik`
-//! (key `frames = 120` → `--frames 120`, arrays repeat the option, `input` is the positional
-//! argument, `true` switches a flag on) and parsed by the same clap parser, so an option cannot
-//! exist in one place only. Paths are relative to the scene file.
+//! Jobs are independent, so `--jobs N` runs N at a time (each writes its own files; the outputs
+//! are the same bytes whatever N is) and `--shard I/N` runs every N-th job for farm job arrays.
+//! Errors and warnings name parameters by their scene keys.
 
-use std::ffi::OsString;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
 
-use anyhow::{anyhow, bail, Context};
-use clap::{Args, CommandFactory, Parser};
+use anyhow::{anyhow, bail};
+use clap::Args;
+use indicatif::MultiProgress;
+use scenebake::scene::{Scene, SceneJob};
 
 use super::{
-    print_warnings, progress, run_cloth, run_ik, summary_line, write_report, Cli, Command, Outcome,
+    print_scene_warnings, progress, run_job, summary_line, write_report, JobError, Outcome,
 };
 
 /// Run the jobs of a scene file.
 #[derive(Debug, Args)]
+#[command(
+    after_help = "Farm job arrays: each task runs its share of the jobs, e.g. with Slurm\n  #SBATCH --array=1-4\n  scenebake run scenes/demo.toml --shard ${SLURM_ARRAY_TASK_ID}/4 --jobs 1"
+)]
 pub struct RunArgs {
     /// Scene file (TOML) with [[cloth]] and [[ik]] jobs.
     #[arg(value_name = "SCENE.toml")]
@@ -24,31 +30,37 @@ pub struct RunArgs {
     /// Run only the job with this `name`.
     #[arg(long, value_name = "NAME")]
     pub only: Option<String>,
+    /// Jobs baked at the same time [default: the number of cores].
+    #[arg(long, short = 'j', value_name = "N")]
+    pub jobs: Option<usize>,
+    /// Run only the I-th of N shares of the jobs (jobs I, I+N, I+2N... in file order, I from 1),
+    /// for farm job arrays.
+    #[arg(long, value_name = "I/N", value_parser = parse_shard)]
+    pub shard: Option<(usize, usize)>,
     /// Write the run's summary (and each job's report) as JSON.
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
 }
 
-/// Keys whose values are file paths, resolved against the scene file's folder.
-const PATH_KEYS: &[&str] = &["input", "output", "report", "rig", "svg", "points", "vat"];
-/// Job kinds a scene file may hold.
-const KINDS: &[&str] = &["cloth", "ik"];
-
-/// A job read from a scene file, parsed by the command-line parser.
-struct SceneJob {
-    kind: String,
-    name: String,
-    command: Command,
+fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let (i, n) = s
+        .split_once('/')
+        .ok_or_else(|| format!("`{s}`: expected I/N, e.g. 1/4"))?;
+    let (i, n) = (i.trim().parse::<usize>(), n.trim().parse::<usize>());
+    match (i, n) {
+        (Ok(i), Ok(n)) if n >= 1 && (1..=n).contains(&i) => Ok((i, n)),
+        _ => Err(format!("`{s}`: expected I/N with 1 ≤ I ≤ N, e.g. 1/4")),
+    }
 }
 
 /// Loads, checks and runs a scene.
 pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
-    let jobs = load_scene(&args.scene)?;
-    let selected: Vec<&SceneJob> = match &args.only {
+    let scene = Scene::load(&args.scene).map_err(|e| anyhow!("{e}"))?;
+    let mut selected: Vec<&SceneJob> = match &args.only {
         Some(only) => {
-            let hit: Vec<&SceneJob> = jobs.iter().filter(|j| &j.name == only).collect();
+            let hit: Vec<&SceneJob> = scene.jobs.iter().filter(|j| &j.name == only).collect();
             if hit.is_empty() {
-                let names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
+                let names: Vec<&str> = scene.jobs.iter().map(|j| j.name.as_str()).collect();
                 bail!(
                     "{}: no job named `{only}` (jobs: {})",
                     args.scene.display(),
@@ -57,54 +69,105 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
             }
             hit
         }
-        None => jobs.iter().collect(),
+        None => scene.jobs.iter().collect(),
     };
+    if let Some((i, n)) = args.shard {
+        selected = selected
+            .into_iter()
+            .enumerate()
+            .filter(|(k, _)| k % n == i - 1)
+            .map(|(_, j)| j)
+            .collect();
+    }
+    let workers = match args.jobs {
+        Some(0) => bail!("invalid value for --jobs: 0: must be at least 1"),
+        Some(n) => n,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    }
+    .min(selected.len().max(1));
     let start = std::time::Instant::now();
+    let total = selected.len();
+    let multi = MultiProgress::new();
+    let next = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let results: Mutex<Vec<Option<anyhow::Result<Outcome>>>> =
+        Mutex::new((0..total).map(|_| None).collect());
+    std::thread::scope(|threads| {
+        for _ in 0..workers {
+            threads.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::SeqCst);
+                if k >= total || failed.load(Ordering::SeqCst) {
+                    break;
+                }
+                let job = selected[k];
+                let label = format!("[{}/{total}] {} {}", k + 1, job.job.kind(), job.name);
+                let bar = multi.add(progress::bar(
+                    &label,
+                    job.job.frames_hint().unwrap_or(1) as u64,
+                    quiet,
+                ));
+                let result = run_job(&job.job, &job.name, &bar).map_err(|e| {
+                    let e = match e {
+                        JobError::Bake(e) => anyhow!("{e}"),
+                        JobError::Other(e) => e,
+                    };
+                    e.context(format!(
+                        "{}: job `{}` ({})",
+                        args.scene.display(),
+                        job.name,
+                        job.job.kind()
+                    ))
+                });
+                multi.remove(&bar);
+                match &result {
+                    Ok(outcome) => {
+                        if !quiet {
+                            let _ = multi.println(format!(
+                                "[{}/{total}] {}",
+                                k + 1,
+                                summary_line(outcome)
+                            ));
+                        }
+                        super::interrupt::record_written(
+                            outcome.files.iter().map(|(f, _)| f.clone()),
+                        );
+                    }
+                    Err(_) => failed.store(true, Ordering::SeqCst),
+                }
+                if let Ok(mut r) = results.lock() {
+                    r[k] = Some(result);
+                }
+            });
+        }
+    });
     let mut outcomes = Vec::new();
-    for (i, job) in selected.iter().enumerate() {
-        let label = format!("[{}/{}] {} {}", i + 1, selected.len(), job.kind, job.name);
-        let outcome = match &job.command {
-            Command::Cloth(a) => run_cloth(a, &label, quiet),
-            Command::Ik(a) => run_ik(a, &label, quiet),
-            Command::Run(_) | Command::Inspect(_) | Command::Open(_) => {
-                unreachable!("scene jobs are cloth or ik")
+    let mut first_error = None;
+    for r in results
+        .into_inner()
+        .unwrap_or_default()
+        .into_iter()
+        .flatten()
+    {
+        match r {
+            Ok(o) => outcomes.push(o),
+            Err(e) => {
+                first_error.get_or_insert(e);
             }
         }
-        .with_context(|| {
-            format!(
-                "{}: job `{}` ({})",
-                args.scene.display(),
-                job.name,
-                job.kind
-            )
-        })?;
-        if !quiet {
-            eprintln!(
-                "[{}/{}] {}",
-                i + 1,
-                selected.len(),
-                summary_line(&Outcome {
-                    name: job.name.clone(),
-                    ..outcome.clone()
-                })
-            );
-        }
-        print_warnings(&Outcome {
-            name: job.name.clone(),
-            ..outcome.clone()
-        });
-        super::interrupt::record_written(outcome.files.iter().map(|(f, _)| f.clone()));
-        outcomes.push(Outcome {
-            name: job.name.clone(),
-            ..outcome
-        });
+    }
+    for o in &outcomes {
+        print_scene_warnings(o);
+    }
+    if let Some(e) = first_error {
+        return Err(e);
     }
     if !quiet {
         println!("{}", table(&outcomes));
         println!(
-            "{} jobs in {:.2} s",
+            "{} jobs in {:.2} s ({} at a time)",
             outcomes.len(),
-            start.elapsed().as_secs_f64()
+            start.elapsed().as_secs_f64(),
+            workers
         );
     }
     if let Some(path) = &args.report {
@@ -175,208 +238,4 @@ fn table(outcomes: &[Outcome]) -> String {
         })
         .collect::<Vec<_>>()
         .join("\n")
-}
-
-/// Reads a scene file and parses every job with the command-line parser.
-fn load_scene(path: &Path) -> anyhow::Result<Vec<SceneJob>> {
-    let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let doc: toml::Table = text.parse().map_err(|e: toml::de::Error| {
-        anyhow!("{}: {}", path.display(), e.to_string().trim_end())
-    })?;
-    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let mut jobs = Vec::new();
-    for (kind, value) in &doc {
-        if !KINDS.contains(&kind.as_str()) {
-            let hint = did_you_mean(kind, KINDS.iter().copied())
-                .map(|k| format!("did you mean [[{k}]]? "))
-                .unwrap_or_default();
-            bail!(
-                "{}: unknown table `{kind}` ({hint}jobs are [[{}]])",
-                path.display(),
-                KINDS.join("]], [[")
-            );
-        }
-        let tables = value.as_array().ok_or_else(|| {
-            anyhow!(
-                "{}: `{kind}` must be an array of tables: write [[{kind}]]",
-                path.display()
-            )
-        })?;
-        for (i, table) in tables.iter().enumerate() {
-            let table = table.as_table().ok_or_else(|| {
-                anyhow!(
-                    "{}: [[{kind}]] entry {} is not a table",
-                    path.display(),
-                    i + 1
-                )
-            })?;
-            let name = match table.get("name") {
-                Some(toml::Value::String(s)) => s.clone(),
-                _ => format!("{kind}{}", i + 1),
-            };
-            let place = format!("{}: [[{kind}]] job {} (`{name}`)", path.display(), i + 1);
-            let argv = job_arguments(kind, table, &dir).map_err(|e| anyhow!("{place}: {e}"))?;
-            let cli =
-                Cli::try_parse_from(argv).map_err(|e| anyhow!("{place}: {}", clap_message(&e)))?;
-            jobs.push(SceneJob {
-                kind: kind.clone(),
-                name,
-                command: cli.command,
-            });
-        }
-    }
-    if jobs.is_empty() {
-        bail!(
-            "{}: no jobs: a scene lists [[cloth]] and [[ik]] tables (see scenes/demo.toml)",
-            path.display()
-        );
-    }
-    let mut names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
-    names.sort_unstable();
-    if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
-        bail!(
-            "{}: two jobs are named `{}`; names must be unique for --only",
-            path.display(),
-            w[0]
-        );
-    }
-    Ok(jobs)
-}
-
-/// The argument vector `scenebake KIND --key value ...` for one job table.
-fn job_arguments(kind: &str, table: &toml::Table, dir: &Path) -> anyhow::Result<Vec<OsString>> {
-    let command = Cli::command();
-    let sub = command
-        .find_subcommand(kind)
-        .ok_or_else(|| anyhow!("unknown job kind `{kind}`"))?;
-    let mut argv: Vec<OsString> = vec!["scenebake".into(), kind.into()];
-    let mut positional = Vec::new();
-    for (raw_key, value) in table {
-        let key = raw_key.replace('_', "-");
-        let arg = sub
-            .get_arguments()
-            .find(|a| {
-                a.get_long() == Some(key.as_str())
-                    || (a.is_positional() && a.get_id().as_str() == key)
-            })
-            .ok_or_else(|| {
-                let mut known: Vec<String> = sub
-                    .get_arguments()
-                    .filter_map(|a| {
-                        a.get_long()
-                            .map(str::to_owned)
-                            .or_else(|| a.is_positional().then(|| a.get_id().to_string()))
-                    })
-                    .filter(|k| k != "help" && k != "version" && k != "quiet")
-                    .collect();
-                known.sort();
-                let hint = did_you_mean(&key, known.iter().map(String::as_str))
-                    .map(|k| format!("did you mean `{k}`? "))
-                    .unwrap_or_default();
-                anyhow!("unknown key `{raw_key}` ({hint}keys: {})", known.join(", "))
-            })?;
-        let takes_value = arg.get_num_args().is_none_or(|n| n.takes_values());
-        let values: Vec<&toml::Value> = match value {
-            toml::Value::Array(items) => items.iter().collect(),
-            v => vec![v],
-        };
-        for v in values {
-            let text = match v {
-                toml::Value::String(s) if PATH_KEYS.contains(&key.as_str()) => lexically_normal(&dir.join(s)).into_os_string(),
-                // A font file (not a built-in font name) is relative to the scene too.
-                toml::Value::String(s)
-                    if key == "font" && (s.contains('/') || s.contains('.')) =>
-                {
-                    lexically_normal(&dir.join(s)).into_os_string()
-                }
-                // A mesh collider's file is relative to the scene too.
-                toml::Value::String(s) if key == "collider" && s.starts_with("mesh:") => {
-                    let mut spec = OsString::from("mesh:");
-                    spec.push(lexically_normal(&dir.join(s["mesh:".len()..].trim())));
-                    spec
-                }
-                toml::Value::String(s) => s.into(),
-                toml::Value::Integer(i) => i.to_string().into(),
-                toml::Value::Float(f) => f.to_string().into(),
-                toml::Value::Boolean(b) if !takes_value => {
-                    if *b {
-                        argv.push(format!("--{key}").into());
-                    }
-                    continue;
-                }
-                toml::Value::Boolean(b) => b.to_string().into(),
-                other => bail!("key `{raw_key}`: expected a string, number, boolean or array of them, found {}", other.type_str()),
-            };
-            if arg.is_positional() {
-                positional.push(text);
-            } else {
-                argv.push(format!("--{key}").into());
-                argv.push(text);
-            }
-        }
-    }
-    if !positional.is_empty() {
-        argv.push("--".into());
-        argv.extend(positional);
-    }
-    Ok(argv)
-}
-
-/// `a/b/../c` → `a/c`, without touching the file system (the output may not exist yet).
-fn lexically_normal(path: &Path) -> PathBuf {
-    use std::path::Component;
-    let mut out = PathBuf::new();
-    for c in path.components() {
-        match c {
-            Component::CurDir => {}
-            Component::ParentDir
-                if matches!(out.components().next_back(), Some(Component::Normal(_))) =>
-            {
-                out.pop();
-            }
-            other => out.push(other),
-        }
-    }
-    if out.as_os_str().is_empty() {
-        out.push(".");
-    }
-    out
-}
-
-/// The known word closest to `word` (edit distance at most 2, or a third of its length), if
-/// any: the likely intended spelling of a typo.
-fn did_you_mean<'a>(word: &str, known: impl Iterator<Item = &'a str>) -> Option<&'a str> {
-    let limit = (word.chars().count() / 3).max(2);
-    known
-        .map(|k| (edit_distance(word, k), k))
-        .filter(|&(d, _)| d <= limit)
-        .min_by_key(|&(d, _)| d)
-        .map(|(_, k)| k)
-}
-
-/// Levenshtein distance between two strings, in characters.
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut prev = row[0];
-        row[0] = i + 1;
-        for (j, &cb) in b.iter().enumerate() {
-            let cur = row[j + 1];
-            row[j + 1] = (prev + usize::from(ca != cb)).min(row[j] + 1).min(cur + 1);
-            prev = cur;
-        }
-    }
-    row[b.len()]
-}
-
-/// clap's message without its `error:` prefix and usage footer, on one line.
-fn clap_message(e: &clap::Error) -> String {
-    let text = e.render().to_string();
-    text.lines()
-        .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
-        .map(|l| l.trim().trim_start_matches("error: "))
-        .filter(|l| !l.is_empty())
-        .collect::<Vec<_>>()
-        .join(" ")
 }

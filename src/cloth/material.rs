@@ -47,6 +47,7 @@ pub struct Material {
 /// The named fabrics of `--material`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum MaterialPreset {
     /// A medium-weight woven cotton: the default.
     Cotton,

@@ -18,7 +18,7 @@ pub mod wind;
 
 use std::time::Instant;
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 
 pub use fast::FastSolver;
 pub use model::ClothModel;
@@ -59,6 +59,7 @@ pub trait StepSolver {
 /// Which solver a bake uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SolverKind {
     /// Local/global fast mass-spring with a prefactored matrix ([`FastSolver`]).
     Fast,
@@ -110,55 +111,7 @@ impl BakeParams {
     }
 }
 
-/// Recorded particle positions for frames 0..=N.
-///
-/// Layout: frame-major, `positions[frame * particles + particle]`, metres, as `f32` (what the
-/// exporters write).
-#[derive(Debug, Clone, PartialEq)]
-pub struct FrameCache {
-    particles: usize,
-    positions: Vec<Vec3>,
-}
-
-impl FrameCache {
-    /// An empty cache for `particles` particles.
-    pub fn new(particles: usize) -> Self {
-        FrameCache {
-            particles,
-            positions: Vec::new(),
-        }
-    }
-
-    /// Appends a frame.
-    ///
-    /// # Panics
-    /// When `frame.len()` differs from the particle count.
-    pub fn push(&mut self, frame: &[DVec3]) {
-        assert_eq!(frame.len(), self.particles, "frame size");
-        self.positions.extend(frame.iter().map(|p| p.as_vec3()));
-    }
-
-    /// Number of recorded frames (the initial state included).
-    pub fn frame_count(&self) -> usize {
-        self.positions
-            .len()
-            .checked_div(self.particles)
-            .unwrap_or(0)
-    }
-
-    /// Number of particles per frame.
-    pub fn particle_count(&self) -> usize {
-        self.particles
-    }
-
-    /// Positions of frame `k`.
-    ///
-    /// # Panics
-    /// When `k >= frame_count()`.
-    pub fn frame(&self, k: usize) -> &[Vec3] {
-        &self.positions[k * self.particles..(k + 1) * self.particles]
-    }
-}
+pub use crate::data::FrameCache;
 
 /// What a bake produced.
 #[derive(Debug, Clone)]

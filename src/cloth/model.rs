@@ -23,7 +23,7 @@ pub struct ClothModel {
     /// Whether each particle is held at its initial position.
     pub pinned: Vec<bool>,
     /// Non-fatal quirks (from loading and from building springs).
-    pub warnings: Vec<String>,
+    pub warnings: Vec<crate::param::Text>,
 }
 
 impl ClothModel {
@@ -73,7 +73,7 @@ impl ClothModel {
             bending: Vec::new(),
             mass,
             pinned,
-            warnings,
+            warnings: warnings.into_iter().map(Into::into).collect(),
             mesh,
         })
     }

@@ -12,6 +12,7 @@ use glam::DVec3;
 
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
+use crate::param::Param;
 use crate::spec::parse_numbers;
 
 /// One parsed `--pin` value.
@@ -29,7 +30,7 @@ impl FromStr for PinSpec {
     type Err = Error;
 
     fn from_str(s: &str) -> Result<Self> {
-        let bad = |m: String| Error::option("--pin", format!("`{s}`: {m}"));
+        let bad = |m: String| Error::param_value(Param::Pin, format!("`{s}`: {m}"));
         let (kind, rest) = s.split_once(':').ok_or_else(|| {
             bad("expected index:I,J,..., box:X0,Y0,Z0,X1,Y1,Z1 or group:NAME".into())
         })?;
@@ -46,7 +47,7 @@ impl FromStr for PinSpec {
                 Ok(PinSpec::Index(indices))
             }
             "box" => {
-                let c = parse_numbers::<6>("--pin", rest, "box:X0,Y0,Z0,X1,Y1,Z1")?;
+                let c = parse_numbers::<6>(Param::Pin, rest, "box:X0,Y0,Z0,X1,Y1,Z1")?;
                 let (a, b) = (DVec3::new(c[0], c[1], c[2]), DVec3::new(c[3], c[4], c[5]));
                 Ok(PinSpec::Box(a.min(b), a.max(b)))
             }
@@ -88,8 +89,7 @@ impl PinSpec {
                     .map(|&i| {
                         mesh.file_index.binary_search(&i).map(|p| p as u32).map_err(|_| {
                             let why = if (i as usize) < file_count { "is used by no face" } else { "is out of range" };
-                            Error::option(
-                                "--pin",
+                            Error::param_value(Param::Pin,
                                 format!("`{self}`: particle {i} {why} ({} has {} particles, indices from 0)", mesh.name, mesh.positions.len()),
                             )
                         })
@@ -104,8 +104,8 @@ impl PinSpec {
                 .collect(),
             PinSpec::Group(name) => mesh.groups.get(name).cloned().ok_or_else(|| {
                 let known: Vec<&str> = mesh.groups.keys().map(String::as_str).collect();
-                Error::option(
-                    "--pin",
+                Error::param_value(
+                    Param::Pin,
                     format!(
                         "`{self}`: {} has no group `{name}` (groups: {})",
                         mesh.name,
@@ -189,7 +189,7 @@ mod tests {
             ("group:", "empty"),
         ] {
             let e = spec.parse::<PinSpec>().unwrap_err().to_string();
-            assert!(e.contains("--pin") && e.contains(words), "{spec}: {e}");
+            assert!(e.contains("`pin`") && e.contains(words), "{spec}: {e}");
         }
         let m = square();
         let e = "index:7"

@@ -76,6 +76,8 @@ use super::morph::{
 use super::statics::push_static_meshes;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
+use crate::param::Param;
+use crate::text;
 
 /// Name of the quantisation extension.
 pub const KHR_MESH_QUANTIZATION: &str = "KHR_mesh_quantization";
@@ -99,17 +101,36 @@ impl std::str::FromStr for BasisSize {
         }
         match s.trim().parse::<usize>() {
             Ok(k) if k >= 1 => Ok(BasisSize::Fixed(k)),
-            _ => Err(Error::option(
-                "--basis",
+            _ => Err(Error::param_value(
+                Param::Basis,
                 format!("`{s}`: expected a number of targets (1 or more) or `auto`"),
             )),
         }
     }
 }
 
+impl<'de> serde::Deserialize<'de> for BasisSize {
+    /// A number of targets, or `"auto"`.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(serde::Deserialize)]
+        #[serde(untagged)]
+        enum Repr {
+            Count(u64),
+            Word(String),
+        }
+        let text = match Repr::deserialize(d)? {
+            Repr::Count(n) => n.to_string(),
+            Repr::Word(w) => w,
+        };
+        text.parse()
+            .map_err(|e: Error| serde::de::Error::custom(e.detail()))
+    }
+}
+
 /// `--quantize`: KHR_mesh_quantization for the basis cache.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum QuantizeMode {
     /// Quantise when the measured error stays within the tolerance and the file gets smaller.
     #[default]
@@ -280,7 +301,7 @@ pub fn encode_basis_gltf(
                 "{f} frames of {} vertices: need at least 2 frames of the mesh's {} render vertices",
                 frames.vertex_count(),
                 mesh.render_vertices.len()
-            ),
+            ).into(),
         });
     }
     if let Some((name, problem)) = options
@@ -290,41 +311,48 @@ pub fn encode_basis_gltf(
     {
         return Err(Error::Export {
             path: path.into(),
-            message: format!("static mesh `{name}` {problem}"),
+            message: format!("static mesh `{name}` {problem}").into(),
         });
     }
     if !(basis.tolerance.is_finite() && basis.tolerance >= 0.0) {
-        return Err(Error::option(
-            "--basis-tolerance",
+        return Err(Error::param_value(
+            Param::BasisTolerance,
             format!("{}: must be zero or a positive distance", basis.tolerance),
         ));
     }
     let keyframe_tolerance = match options.keyframe_tolerance {
         Some(t) if t.is_finite() && t >= 0.0 => Some(t),
         Some(t) => {
-            return Err(Error::option(
-                "--keyframe-tolerance",
+            return Err(Error::param_value(
+                Param::KeyframeTolerance,
                 format!("{t}: must be zero or a positive distance"),
             ))
         }
         None => None,
     };
     if basis.max_targets == Some(0) {
-        return Err(Error::option("--max-targets", "0: must be at least 1"));
+        return Err(Error::param_value(
+            Param::MaxTargets,
+            "0: must be at least 1",
+        ));
     }
     let available = f - 1;
     let cap = basis.max_targets.unwrap_or(usize::MAX).min(available);
     if let BasisSize::Fixed(k) = basis.size {
         if k > available {
-            return Err(Error::option(
-                "--basis",
+            return Err(Error::param_value(
+                Param::Basis,
                 format!("{k} targets: the bake has only {available} frames after frame 0"),
             ));
         }
         if let Some(n) = basis.max_targets.filter(|&n| k > n) {
-            return Err(Error::option(
-                "--max-targets",
-                format!("{n}: fewer than the {k} targets --basis asks for"),
+            return Err(Error::param_value(
+                Param::MaxTargets,
+                text!(
+                    format!("{n}: fewer than the {k} targets "),
+                    Param::Basis,
+                    " asks for"
+                ),
             ));
         }
     }
@@ -373,10 +401,15 @@ pub fn encode_basis_gltf(
              raise it, or allow more targets"
         );
         return Err(match basis.max_targets {
-            Some(n) if n < available => {
-                Error::option("--max-targets", format!("{n}: --basis-tolerance {message}"))
-            }
-            _ => Error::option("--basis-tolerance", message),
+            Some(n) if n < available => Error::param_value(
+                Param::MaxTargets,
+                text!(
+                    format!("{n}: "),
+                    Param::BasisTolerance,
+                    format!(" {message}")
+                ),
+            ),
+            _ => Error::param_value(Param::BasisTolerance, message),
         });
     };
     let mut pick = float_pick;
@@ -1162,7 +1195,7 @@ fn write(
     let to_raw = |value: serde_json::Value| {
         serde_json::value::to_raw_value(&value).map_err(|error| Error::Json {
             path: path.into(),
-            error,
+            source: error,
         })
     };
     let gmesh = b.root.push(json::Mesh {
@@ -1344,7 +1377,7 @@ mod tests {
         assert_eq!("auto".parse::<BasisSize>().unwrap(), BasisSize::Auto);
         assert_eq!("12".parse::<BasisSize>().unwrap(), BasisSize::Fixed(12));
         let e = "0".parse::<BasisSize>().unwrap_err().to_string();
-        assert!(e.contains("--basis"), "{e}");
+        assert!(e.contains("`basis`"), "{e}");
         assert!("x".parse::<BasisSize>().is_err());
     }
 

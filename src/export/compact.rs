@@ -25,6 +25,7 @@ use super::morph::Interpolation;
 /// Whether morph-target deltas may be written as sparse accessors (`--sparse`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SparseMode {
     /// Sparse where it is smaller than dense.
     #[default]
@@ -181,7 +182,7 @@ pub fn delta_accessor(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cloth::FrameCache;
+    use crate::data::FrameCache;
     use crate::mesh::Mesh;
 
     /// Two particles, one triangle's worth of render vertices, moving along x by `xs[k]`.

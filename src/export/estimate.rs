@@ -8,6 +8,9 @@
 //! warns.
 
 use crate::error::{Error, Result};
+use crate::param::Param;
+use crate::param::Text;
+use crate::text;
 
 /// Largest output accepted: a GLB's 32-bit length.
 pub const LIMIT_BYTES: u64 = u32::MAX as u64;
@@ -44,23 +47,32 @@ pub fn human(bytes: u128) -> String {
 ///
 /// # Errors
 /// [`Error::InvalidOption`] naming `--frames`.
-pub fn check_frames(frames: usize, vertices: usize, normals: bool) -> Result<Option<String>> {
+pub fn check_frames(frames: usize, vertices: usize, normals: bool) -> Result<Option<Text>> {
     let bytes = morph_bytes(vertices, frames.saturating_add(1), normals);
     if bytes > u128::from(LIMIT_BYTES) {
         let most = u128::from(LIMIT_BYTES) / morph_bytes(vertices.max(1), 1, normals);
-        return Err(Error::option(
-            "--frames",
-            format!(
-                "{frames}: {frames} frames of {vertices} vertices need about {} in memory and in the output, over the 4.3 GB a GLB can hold; at most {} frames fit (--keyframe-tolerance shrinks the file, not the bake)",
-                human(bytes),
-                most.saturating_sub(1)
+        return Err(Error::param_value(
+            Param::Frames,
+            text!(
+                format!(
+                    "{frames}: {frames} frames of {vertices} vertices need about {} in memory and \
+                     in the output, over the 4.3 GB a GLB can hold; at most {} frames fit (",
+                    human(bytes),
+                    most.saturating_sub(1)
+                ),
+                Param::KeyframeTolerance,
+                " shrinks the file, not the bake)"
             ),
         ));
     }
     Ok((bytes > u128::from(WARN_BYTES)).then(|| {
-        format!(
-            "the output will be about {} ({frames} frames of {vertices} vertices); --keyframe-tolerance can shrink it",
-            human(bytes)
+        text!(
+            format!(
+                "the output will be about {} ({frames} frames of {vertices} vertices); ",
+                human(bytes)
+            ),
+            Param::KeyframeTolerance,
+            " can shrink it"
         )
     }))
 }
@@ -75,7 +87,7 @@ mod tests {
         let fit = (u32::MAX as u64 / 23_064) as usize;
         assert!(check_frames(fit - 1, 961, true).is_ok());
         let e = check_frames(fit, 961, true).unwrap_err().to_string();
-        assert!(e.starts_with("invalid value for --frames: "), "{e}");
+        assert!(e.starts_with("invalid value for `frames`: "), "{e}");
         assert!(
             e.contains(&format!("at most {} frames fit", fit - 1)),
             "{e}"

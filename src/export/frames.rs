@@ -4,7 +4,7 @@
 use glam::{DVec3, Vec3};
 
 use super::shading::angle_weighted_normals;
-use crate::cloth::FrameCache;
+use crate::data::FrameCache;
 use crate::mesh::Mesh;
 
 /// Positions and normals of every render vertex at every frame 0..=N.

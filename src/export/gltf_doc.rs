@@ -366,7 +366,7 @@ impl GltfBuilder {
         }
         let json_bytes = json::serialize::to_vec(&self.root).map_err(|error| Error::Json {
             path: path.into(),
-            error,
+            source: error,
         })?;
         let files: Vec<(PathBuf, Vec<u8>)> = if glb {
             if json_bytes.len() + self.bin.len() + 28 > u32::MAX as usize {
@@ -386,7 +386,7 @@ impl GltfBuilder {
             };
             let bytes = glb.to_vec().map_err(|e| Error::Export {
                 path: path.into(),
-                message: e.to_string(),
+                message: e.to_string().into(),
             })?;
             vec![(path.to_path_buf(), bytes)]
         } else {

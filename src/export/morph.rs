@@ -22,13 +22,15 @@ use super::compact::{
 use super::frames::RenderFrames;
 use super::gltf_doc::{channel, primitive, sampler, GltfBuilder, Written};
 use super::statics::{push_static_meshes, StaticMesh};
-use crate::cloth::FrameCache;
+use crate::data::FrameCache;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
+use crate::param::Param;
 
 /// How weights are interpolated between frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Interpolation {
     /// Positions blend linearly between frames.
     #[default]
@@ -132,7 +134,8 @@ pub fn check_cache(path: &Path, mesh: &Mesh, cache: &FrameCache) -> Result<()> {
                 cache.frame_count(),
                 cache.particle_count(),
                 mesh.particle_count()
-            ),
+            )
+            .into(),
         });
     }
     Ok(())
@@ -159,7 +162,8 @@ pub fn encode_morph_gltf(
                 frames.frame_count(),
                 frames.vertex_count(),
                 mesh.render_vertices.len()
-            ),
+            )
+            .into(),
         });
     }
     if let Some((name, problem)) = options
@@ -169,14 +173,14 @@ pub fn encode_morph_gltf(
     {
         return Err(Error::Export {
             path: path.into(),
-            message: format!("static mesh `{name}` {problem}"),
+            message: format!("static mesh `{name}` {problem}").into(),
         });
     }
     let selection = match options.keyframe_tolerance {
         Some(t) if t.is_finite() && t >= 0.0 => select_keyframes(frames, t, options.interpolation),
         Some(t) => {
-            return Err(Error::option(
-                "--keyframe-tolerance",
+            return Err(Error::param_value(
+                Param::KeyframeTolerance,
                 format!("{t}: must be zero or a positive distance"),
             ))
         }
@@ -211,7 +215,7 @@ pub fn encode_morph_gltf(
             serde_json::value::to_raw_value(&serde_json::json!({ "targetNames": names })).map_err(
                 |error| Error::Json {
                     path: path.into(),
-                    error,
+                    source: error,
                 },
             )?,
         ),

@@ -124,7 +124,7 @@ pub fn normal_deltas(normals: &[Vec3], frame0: &[Vec3], base: &[Vec3]) -> Vec<Ve
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cloth::FrameCache;
+    use crate::data::FrameCache;
 
     /// A 3×3-vertex sheet in y = 0 whose middle row rises by `lift` from frame 1 on.
     fn sheet(lift: f32) -> (Mesh, RenderFrames) {

@@ -18,9 +18,9 @@ use gltf_json as json;
 use json::validation::Checked::Valid;
 
 use super::gltf_doc::{channel, primitive, sampler, GltfBuilder, Written};
+use crate::data::chain::{Chain, Pose};
 use crate::error::Result;
-use crate::ik::chain::{Chain, Pose};
-use crate::ik::rig::RigDocument;
+use crate::io::rig::RigDocument;
 use crate::path::PenTarget;
 
 /// Scale of a trail piece before it is revealed (the validator dislikes exactly 0).

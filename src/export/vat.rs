@@ -22,6 +22,7 @@ use glam::Vec3;
 
 use super::frames::RenderFrames;
 use crate::error::{Error, Result};
+use crate::param::Param;
 
 /// Default `--vat-max-width`: pixels per image row.
 pub const DEFAULT_MAX_WIDTH: usize = 8192;
@@ -29,6 +30,7 @@ pub const DEFAULT_MAX_WIDTH: usize = 8192;
 /// What the position image stores (`--vat-mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum VatMode {
     /// Object-space positions, scene units.
     #[default]
@@ -143,8 +145,8 @@ pub fn vat_paths(path: &Path) -> Result<(PathBuf, PathBuf)> {
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     if ext.as_deref() != Some("exr") || path.file_stem().is_none_or(|s| s.is_empty()) {
-        return Err(Error::option(
-            "--vat",
+        return Err(Error::param_value(
+            Param::Vat,
             format!(
                 "{}: the vertex-animation texture must be a file ending in .exr",
                 path.display()
@@ -165,8 +167,8 @@ pub fn vat_paths(path: &Path) -> Result<(PathBuf, PathBuf)> {
 pub fn encode_vat(path: &Path, frames: &RenderFrames, options: &VatOptions) -> Result<EncodedVat> {
     let (normals_path, json_path) = vat_paths(path)?;
     if options.max_width == 0 {
-        return Err(Error::option(
-            "--vat-max-width",
+        return Err(Error::param_value(
+            Param::VatMaxWidth,
             "0: must be at least 1 pixel",
         ));
     }
@@ -208,7 +210,7 @@ pub fn encode_vat(path: &Path, frames: &RenderFrames, options: &VatOptions) -> R
     };
     let json = serde_json::to_vec_pretty(&manifest).map_err(|error| Error::Json {
         path: json_path.clone(),
-        error,
+        source: error,
     })?;
     files.push((json_path, json));
     Ok(EncodedVat { files, manifest })
@@ -255,7 +257,7 @@ fn exr_bytes(path: &Path, values: &[Vec3], vertices: usize, layout: VatLayout) -
         .to_buffered(&mut bytes)
         .map_err(|e| Error::Export {
             path: path.into(),
-            message: format!("cannot encode the EXR image: {e}"),
+            message: format!("cannot encode the EXR image: {e}").into(),
         })?;
     Ok(bytes.into_inner())
 }
@@ -313,7 +315,7 @@ mod tests {
         assert!(vat_paths(Path::new("out/CLOTH.EXR")).is_ok());
         for bad in ["cloth.png", "cloth", "out/.exr"] {
             let e = vat_paths(Path::new(bad)).unwrap_err().to_string();
-            assert!(e.contains("--vat"), "{e}");
+            assert!(e.contains("`vat`"), "{e}");
         }
     }
 }

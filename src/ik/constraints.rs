@@ -22,6 +22,8 @@ use glam::{DQuat, DVec3};
 
 use super::chain::{Chain, Pose};
 use crate::error::{Error, Result};
+use crate::param::Param;
+use crate::text;
 
 /// A rotation limit on one joint.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -85,13 +87,13 @@ impl Constraints {
     pub fn from_specs(chain: &Chain, pole: Option<DVec3>, specs: &[String]) -> Result<Self> {
         if let Some(p) = pole {
             if !p.is_finite() {
-                return Err(Error::option("--pole", "must be finite"));
+                return Err(Error::param_value(Param::Pole, "must be finite"));
             }
         }
         let rest = chain.rest_pose();
         let mut limits: Vec<(usize, Limit)> = Vec::new();
         for spec in specs {
-            let bad = |m: String| Error::option("--limit", format!("`{spec}`: {m}"));
+            let bad = |m: String| Error::param_value(Param::Limit, format!("`{spec}`: {m}"));
             let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
             if parts.len() < 3 {
                 return Err(bad(
@@ -139,18 +141,25 @@ impl Constraints {
                     }
                     let axis = match parts.get(3) {
                         Some(a) => {
-                            let v = crate::spec::parse_vec3("--limit", a)?;
+                            let v = crate::spec::parse_vec3(Param::Limit, a)?;
                             if v.length() < 1e-12 {
                                 return Err(bad("the hinge axis is zero".into()));
                             }
                             v.normalize()
                         }
                         None => default_hinge_axis(&rest, i, pole).ok_or_else(|| {
-                            bad(format!(
-                                "cannot tell the bend axis of `{}`: it is straight in the rest \
-                                 pose; give --pole or the axis as JOINT:hinge:MIN..MAX:X,Y,Z",
-                                parts[0]
-                            ))
+                            Error::param_value(
+                                Param::Limit,
+                                text!(
+                                    format!(
+                                        "`{spec}`: cannot tell the bend axis of `{}`: it is \
+                                         straight in the rest pose; give ",
+                                        parts[0]
+                                    ),
+                                    Param::Pole,
+                                    " or the axis as JOINT:hinge:MIN..MAX:X,Y,Z"
+                                ),
+                            )
                         })?,
                     };
                     if parts.len() > 4 {
@@ -411,12 +420,12 @@ mod tests {
             let e = Constraints::from_specs(&c, None, &[bad.into()])
                 .unwrap_err()
                 .to_string();
-            assert!(e.contains("--limit") && e.contains(needle), "{bad}: {e}");
+            assert!(e.contains("`limit`") && e.contains(needle), "{bad}: {e}");
         }
         // A straight joint without a pole has no bend axis to hinge about.
         let e = Constraints::from_specs(&c, None, &["joint_1:hinge:0..90".into()])
             .unwrap_err()
             .to_string();
-        assert!(e.contains("--pole"), "{e}");
+        assert!(e.contains("`pole`"), "{e}");
     }
 }

@@ -31,7 +31,7 @@ pub fn import_gltf(path: &Path) -> Result<Imported> {
     }
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|error| Error::Gltf {
         path: path.into(),
-        error,
+        source: error,
     })?;
     let buffers = load_buffers(path, &gltf)?;
     Ok((gltf.document, buffers))
@@ -77,7 +77,7 @@ pub fn import_gltf_for_inspection(path: &Path) -> Result<Imported> {
     if !errors.is_empty() {
         return Err(Error::Gltf {
             path: path.into(),
-            error: gltf::Error::Validation(errors),
+            source: gltf::Error::Validation(errors),
         });
     }
     let buffers = load_buffers(path, &unchecked)?;

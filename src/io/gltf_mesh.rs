@@ -13,6 +13,7 @@ use glam::{DMat4, DVec3, Mat4};
 use super::gltf_import::import_gltf;
 use crate::error::{Error, Result};
 use crate::mesh::{drop_degenerate, Mesh, RenderVertex};
+use crate::param::Param;
 
 /// Reads mesh `name` (or the first mesh) of a glTF file.
 ///
@@ -34,8 +35,8 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
                             .unwrap_or_else(|| format!("#{}", m.index()))
                     })
                     .collect();
-                Error::option(
-                    "--mesh",
+                Error::param_value(
+                    Param::Mesh,
                     format!(
                         "{}: no mesh named `{name}` (meshes: {})",
                         path.display(),

@@ -3,5 +3,6 @@
 pub mod gltf_import;
 pub mod gltf_mesh;
 pub mod obj;
+pub mod rig;
 pub mod skin_weights;
 pub mod tet;

@@ -16,6 +16,7 @@ use glam::DVec3;
 
 use crate::error::{Error, Result};
 use crate::mesh::{drop_degenerate, Mesh, RenderVertex};
+use crate::param::Param;
 
 /// Options for reading an OBJ file.
 #[derive(Debug, Clone, Default)]
@@ -37,7 +38,8 @@ pub fn load_obj(path: &Path, options: &ObjOptions) -> Result<Mesh> {
         message: format!(
             "not a text file (invalid UTF-8 at byte {})",
             e.utf8_error().valid_up_to()
-        ),
+        )
+        .into(),
     })?;
     parse_obj(&text, path, options)
 }
@@ -62,7 +64,7 @@ pub fn parse_obj(text: &str, path: &Path, options: &ObjOptions) -> Result<Mesh> 
         let err = |message: String| Error::Parse {
             path: path.into(),
             line: Some(line_no),
-            message,
+            message: message.into(),
         };
         let line = raw.split('#').next().unwrap_or("").trim();
         let mut words = line.split_whitespace();
@@ -142,8 +144,8 @@ pub fn parse_obj(text: &str, path: &Path, options: &ObjOptions) -> Result<Mesh> 
             known_names.sort();
             known_names.dedup();
             known_names.retain(|n| !n.is_empty());
-            return Err(Error::option(
-                "--object",
+            return Err(Error::param_value(
+                Param::Object,
                 format!(
                     "{}: no object or group named `{object}` with faces (known: {})",
                     path.display(),

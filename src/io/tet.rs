@@ -32,7 +32,7 @@ pub fn parse_tet(text: &str, path: &Path) -> Result<Mesh> {
     let err = |line: usize, message: String| Error::Parse {
         path: path.into(),
         line: Some(line),
-        message,
+        message: message.into(),
     };
     // Non-empty lines with their one-based numbers.
     let mut lines = text
@@ -117,7 +117,7 @@ impl<'a, 'l, I: Iterator<Item = (usize, &'l str)>> Rows<'a, I> {
         let err = |line: usize, message: String| Error::Parse {
             path: self.path.into(),
             line: Some(line),
-            message,
+            message: message.into(),
         };
         let (line, l) = self.lines.next().ok_or_else(|| {
             err(

@@ -6,10 +6,12 @@ use std::str::FromStr;
 use glam::DVec2;
 
 use crate::error::Error;
+use crate::param::Param;
 
 /// A closed analytic curve (`--curve`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum CurveKind {
     /// Circle of radius R.
     Circle,
@@ -90,8 +92,8 @@ impl FromStr for CurveKind {
             .into_iter()
             .find(|c| c.as_str().eq_ignore_ascii_case(s.trim()))
             .ok_or_else(|| {
-                Error::option(
-                    "--curve",
+                Error::param_value(
+                    Param::Curve,
                     format!("`{s}`: expected circle, square, heart, triangle or star"),
                 )
             })
@@ -110,7 +112,7 @@ mod tests {
             .parse::<CurveKind>()
             .unwrap_err()
             .to_string()
-            .contains("--curve"));
+            .contains("`curve`"));
         let c = CurveKind::Circle.polyline(0.6, 150);
         assert_eq!(c.len(), 150);
         assert!(c.iter().all(|p| (p.length() - 0.6).abs() < 1e-12));

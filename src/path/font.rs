@@ -14,6 +14,7 @@ use std::path::Path;
 use glam::DVec2;
 
 use crate::error::{Error, Result};
+use crate::param::Param;
 
 /// The built-in Hershey fonts: option name, file, description.
 pub const HERSHEY_FONTS: [(&str, &str, &str); 8] = [
@@ -137,8 +138,8 @@ impl Font {
             let names: Vec<&str> = std::iter::once(GRID)
                 .chain(HERSHEY_FONTS.iter().map(|(n, _, _)| *n))
                 .collect();
-            return Err(Error::option(
-                "--font",
+            return Err(Error::param_value(
+                Param::Font,
                 format!(
                     "`{spec}`: not a built-in font ({}) nor a .ttf/.otf file",
                     names.join(", ")
@@ -481,8 +482,8 @@ pub fn layout(font: &Font, text: &str) -> Result<TextLayout> {
         }
     }
     if all.is_empty() {
-        return Err(Error::option(
-            "--text",
+        return Err(Error::param_value(
+            Param::Text,
             "nothing to draw (the text is empty or only spaces)",
         ));
     }

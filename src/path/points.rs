@@ -50,7 +50,7 @@ pub fn parse_points(path: &Path, text: &str) -> Result<PointStrokes> {
         let parse_err = |message: String| Error::Parse {
             path: path.into(),
             line: Some(idx + 1),
-            message,
+            message: message.into(),
         };
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         if !(2..=3).contains(&fields.len()) {

@@ -28,7 +28,7 @@ pub fn read_svg(path: &Path) -> Result<Vec<Polyline>> {
     let shapes = parse_svg(&text).map_err(|message| Error::Parse {
         path: path.into(),
         line: None,
-        message,
+        message: message.into(),
     })?;
     if shapes.iter().all(|(p, _)| p.len() < 2) {
         return Err(Error::invalid(

@@ -138,7 +138,7 @@ mod tests {
         assert!((lo + 12.0).abs() < 1e-12 && (hi - 12.0).abs() < 1e-12);
         let e = font::layout(&grid, "héllo").unwrap_err().to_string();
         assert!(
-            e.contains("--text") && e.contains("'é'") && e.contains("grid"),
+            e.contains("`text`") && e.contains("'é'") && e.contains("grid"),
             "{e}"
         );
         assert!(font::layout(&grid, "  ").is_err());

@@ -11,8 +11,10 @@ use glam::{DAffine3, DMat4, DQuat, DVec3};
 use gltf_json as json;
 use json::validation::USize64;
 
-use super::chain::{Chain, Joint};
+use crate::data::chain::{Chain, Joint};
 use crate::error::{Error, Result};
+use crate::param::Param;
+use crate::text;
 
 /// A loaded glTF document with its merged binary buffer.
 #[derive(Debug, Clone)]
@@ -196,8 +198,8 @@ impl RigDocument {
             .map(|(a, b)| (a.trim(), b.trim()))
             .filter(|(a, b)| !a.is_empty() && !b.is_empty())
             .ok_or_else(|| {
-                Error::option(
-                    "--chain",
+                Error::param_value(
+                    Param::Chain,
                     format!("`{spec}`: expected ROOT..TIP (node names or #N)"),
                 )
             })?;
@@ -251,7 +253,9 @@ impl RigDocument {
             })
             .collect();
         let chain = Chain::new(joints, base).map_err(|e| match e {
-            Error::Chain(m) => Error::invalid(&self.path, format!("--chain {spec}: {m}")),
+            Error::Chain(m) => {
+                Error::invalid(&self.path, text!(Param::Chain, format!(" {spec}: {m}")))
+            }
             other => other,
         })?;
         Ok(RigChain { chain, nodes })

@@ -1,7 +1,8 @@
 //! The IK bake: chain + target path + solver → a glTF animation and a report.
 //!
-//! [`IkJob`] is a plain description of one `scenebake ik` run, one field per command-line
-//! option; [`bake_ik`] runs it.
+//! [`IkJob`] holds every parameter of one IK bake, with its defaults (scene files deserialise
+//! into it; the `scenebake ik` command line is derived from it); [`bake_ik`] runs it and returns
+//! the [`IkReport`] for the caller to write or print.
 
 use std::f64::consts::TAU;
 use std::path::PathBuf;
@@ -10,19 +11,23 @@ use std::time::Instant;
 
 use glam::{DQuat, DVec2, DVec3};
 
-use super::chain::{Chain, ROOT_HEIGHT_FRACTION};
-use super::constraints::Constraints;
-use super::rig::RigDocument;
-use super::solver::{IkSolver, SolverConfig};
-use super::{Ccd, Fabrik};
 use crate::error::{Error, Result};
 use crate::export::skin::{write_chain_gltf, write_rig_gltf, IkFrames};
+use crate::ik::chain::{Chain, ROOT_HEIGHT_FRACTION};
+use crate::ik::constraints::Constraints;
+use crate::ik::solver::{IkSolver, SolverConfig};
+use crate::ik::{Ccd, Fabrik};
+use crate::io::rig::RigDocument;
+use crate::param::{Param, Text};
 use crate::path::font::Font;
 use crate::path::{self, CurveKind, PenTarget, Plane, Stroke, Timing};
+use crate::spec::de;
+use crate::text;
 
 /// Which solver runs (`--solver`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SolverKind {
     /// FABRIK (the default).
     #[default]
@@ -48,16 +53,13 @@ impl FromStr for SolverKind {
         match s.trim().to_ascii_lowercase().as_str() {
             "fabrik" => Ok(SolverKind::Fabrik),
             "ccd" => Ok(SolverKind::Ccd),
-            _ => Err(Error::option(
-                "--solver",
+            _ => Err(Error::param_value(
+                Param::Solver,
                 format!("`{s}`: expected fabrik or ccd"),
             )),
         }
     }
 }
-
-/// The name of the lab arm preset (`--preset lab-arm`).
-pub const LAB_ARM: &str = "lab-arm";
 
 /// Default tip speed as a fraction of the chain's reach per second: the lab circle (radius 0.6
 /// on the 2.6-long arm) drawn in 5 s, so at the default 30 fps it keeps the lab's 150 targets.
@@ -66,104 +68,148 @@ pub const TIP_SPEED_PER_REACH: f64 = TAU * 0.6 / 2.6 / 5.0;
 /// Default time for the pen to reach `--pen-speed` from rest (and to stop), seconds.
 pub const DEFAULT_EASE: f64 = 0.15;
 
-/// One `scenebake ik` run. Each field is one command-line option:
-///
-/// | field | option | default |
-/// | --- | --- | --- |
-/// | `preset` | `--preset NAME` (only `lab-arm`) | — |
-/// | `joints` | `--joints N` (straight generated chain of N joints) | — |
-/// | `length` | `--length L` (total length of that chain) | 2.6 |
-/// | `rig` | `--rig FILE.glb\|.gltf` | — |
-/// | `chain` | `--chain ROOT..TIP` (names or `#N`; with `--rig`) | — |
-/// | `solver` | `--solver fabrik\|ccd` ([`SolverKind::from_str`]) | fabrik |
-/// | `max_iterations` | `--max-iterations N` | 100 |
-/// | `tolerance` | `--tolerance D` (scene units) | 1e-4 |
-/// | `max_angle` | `--max-angle DEG` (per joint per frame) | unlimited |
-/// | `pole` | `--pole X,Y,Z` (the chain bends towards this world point) | none |
-/// | `limit` | `--limit JOINT:hinge:MIN..MAX[:X,Y,Z]`, `--limit JOINT:cone:DEG` (repeatable; [`Constraints::from_specs`]) | none |
-/// | `fps` | `--fps F` | 30 |
-/// | `curve` | `--curve circle\|square\|heart\|triangle\|star` ([`CurveKind::from_str`]) | — |
-/// | `text` | `--text "..."` | — |
-/// | `font` | `--font NAME\|FILE.ttf` (with `--text`; [`crate::path::font`]) | simplex |
-/// | `svg` | `--svg FILE` | — |
-/// | `points` | `--points FILE.csv` | — |
-/// | `radius` | `--radius R` (curve size) | lab arm: 0.6 (heart 0.5); else reach·0.6/2.6 (heart reach·0.5/2.6) |
-/// | `center` | `--center X,Y,Z` ([`crate::spec::parse_vec3`]) | lab arm: origin; with `normal`: root − (1.7/2.6)·reach·normal; else root + (1.7/2.6)·reach along the chain |
-/// | `normal` | `--normal X,Y,Z` (the board faces along it) | the chain's rest direction, reversed |
-/// | `size` | `--size H` (letter height for `--text`, drawing height for `--svg`) | fit to reach |
-/// | `lift` | `--lift D` (pen lift between strokes) | 0.04·reach |
-/// | `spacing` | `--spacing D` (target spacing along the path) | tip speed (0.29·reach/s) / fps |
-/// | `pen_speed` | `--pen-speed V` (scene units/s; strokes and lifts start and end at rest) | none: even spacing |
-/// | `ease` | `--ease S` (seconds to reach the pen speed; with `pen_speed`) | 0.15 |
-/// | `output` | `-o FILE.glb\|.gltf` | `exports/ik.glb` |
-/// | `report` | `--report FILE.json` | none |
+/// Generated chains.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum IkPreset {
+    /// The labs' 5-joint arm (root at 1.7 m, reach 2.6 m).
+    LabArm,
+}
+
+/// Default values of an IK bake.
+pub mod defaults {
+    /// Iteration cap per frame.
+    pub const MAX_ITERATIONS: usize = 100;
+    /// Distance from the target that counts as reached, scene units.
+    pub const TOLERANCE: f64 = 1e-4;
+    /// Frames per second.
+    pub const FPS: f64 = 30.0;
+}
+
+/// One IK bake. Lengths are scene units (metres for the generated chains), positions and
+/// directions are in glTF's world frame (+Y up), angles in degrees.
 ///
 /// Exactly one chain source (`preset`, `joints`, or `rig` + `chain`) and exactly one path source
 /// (`curve`, `text`, `svg`, `points`) must be given. The drawing plane (the board) passes through
 /// `center` and faces along `normal` (by default it is perpendicular to the chain's rest
 /// direction, root → end effector). Drawings are laid out to read correctly for someone on the
 /// chain root's side of the board, up towards world +Y, whichever way `normal` points; the pen
-/// lifts towards that side.
-///
-/// The struct also (de)serialises with serde under the option names (`max-iterations`,
-/// `max-angle`...), every key optional, unknown keys rejected, so scene files can hold a job.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default, rename_all = "kebab-case", deny_unknown_fields)]
+/// lifts towards that side. Defaults that depend on the chain: `radius` lab arm 0.6 (heart 0.5),
+/// else reach·0.6/2.6; `center` lab arm the origin, with `normal` root − (1.7/2.6)·reach·normal,
+/// else root + (1.7/2.6)·reach along the chain; `lift` 0.04·reach; `spacing` an even tip speed
+/// of 0.29·reach/s.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+#[cfg_attr(feature = "cli", command(allow_negative_numbers = true))]
 pub struct IkJob {
-    /// `--preset`.
-    pub preset: Option<String>,
-    /// `--joints`.
+    /// A generated reference chain: the labs' 5-joint arm.
+    #[cfg_attr(feature = "cli", arg(long, value_enum))]
+    pub preset: Option<IkPreset>,
+    /// A straight generated chain of N joints (the last is the end effector).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
     pub joints: Option<usize>,
-    /// `--length`.
+    /// Total length of the --joints chain [default: 2.6].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "L"))]
     pub length: Option<f64>,
-    /// `--rig`.
+    /// A skinned glTF whose chain to animate (with --chain); the output is this document plus one
+    /// new animation.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.glb|.gltf"))]
     pub rig: Option<PathBuf>,
-    /// `--chain`.
+    /// The chain in --rig, ROOT..TIP: joint names, #N for node N (quote it: a shell drops
+    /// everything after an unquoted #, so write --chain '#13..#15'), or Node_N as Blender names
+    /// unnamed nodes. `scenebake inspect FILE` lists the nodes with their #N.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "ROOT..TIP"))]
     pub chain: Option<String>,
-    /// `--solver`.
+    /// IK solver.
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SolverKind::Fabrik))]
     pub solver: SolverKind,
-    /// `--max-iterations`.
+    /// Iteration cap per frame.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::MAX_ITERATIONS, value_name = "N"))]
+    #[serde(alias = "max-iterations")]
     pub max_iterations: usize,
-    /// `--tolerance` (scene units).
+    /// Distance from the target that counts as reached, in scene units.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::TOLERANCE, value_name = "D"))]
     pub tolerance: f64,
-    /// `--max-angle` (degrees).
+    /// Largest rotation of any joint from one frame to the next, in degrees (clamps sudden flips).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "DEG"))]
+    #[serde(alias = "max-angle")]
     pub max_angle: Option<f64>,
-    /// `--pole` (world point).
+    /// Keep the chain's bend facing this world point (like Blender's IK pole): an elbow points
+    /// towards it.
+    #[serde(deserialize_with = "de::opt_vec3")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "X,Y,Z", value_parser = crate::spec::vec3_value, allow_hyphen_values = true))]
     pub pole: Option<DVec3>,
-    /// `--limit` specifications, one per limited joint.
+    /// Limit a joint, from its rest rotation, in degrees: JOINT:hinge:MIN..MAX (one axis: with
+    /// --pole, positive bends the joint out towards the pole; or give the axis as a world
+    /// direction, JOINT:hinge:MIN..MAX:X,Y,Z) or JOINT:cone:DEG (the bone stays within DEG of
+    /// its rest direction). Repeat for several joints.
+    #[serde(deserialize_with = "de::string_list")]
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_name = "JOINT:KIND:RANGE", allow_hyphen_values = true)
+    )]
     pub limit: Vec<String>,
-    /// `--fps`.
+    /// Frames per second of the animation.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::FPS, value_name = "F"))]
     pub fps: f64,
-    /// `--curve`.
+    /// Follow a closed curve.
+    #[cfg_attr(feature = "cli", arg(long, value_enum))]
     pub curve: Option<CurveKind>,
-    /// `--text`.
+    /// Write text (lines split at \n) in --font.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "TEXT"))]
     pub text: Option<String>,
-    /// `--font` (built-in name or font file).
+    /// Font for --text: a Hershey single-stroke font (simplex, duplex, triplex, script,
+    /// script-complex, cursive, sans, greek), the old capitals-only `grid`, or a TrueType/OpenType
+    /// file (letters drawn as outlines) [default: simplex].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "NAME|FILE.ttf"))]
     pub font: Option<String>,
-    /// `--svg`.
+    /// Draw every path of an SVG file (lines, Béziers and arcs, flattened).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.svg"))]
     pub svg: Option<PathBuf>,
-    /// `--points`.
+    /// Follow points from a CSV file: `x,y[,z]` per line, a blank line lifts the pen.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.csv"))]
     pub points: Option<PathBuf>,
-    /// `--radius` (scene units).
+    /// Curve radius in scene units [lab arm: 0.6; rigs: sized to the chain's reach].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "R"))]
     pub radius: Option<f64>,
-    /// `--center` (world position).
+    /// Centre of the drawing [lab arm: the origin; rigs: in front of the chain].
+    #[serde(deserialize_with = "de::opt_vec3")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "X,Y,Z", value_parser = crate::spec::vec3_value, allow_hyphen_values = true))]
     pub center: Option<DVec3>,
-    /// `--normal` (world direction the board faces).
+    /// Direction the drawing board faces (its normal); the drawing reads correctly from the
+    /// chain root's side [default: facing the chain root along its rest direction].
+    #[serde(deserialize_with = "de::opt_vec3")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "X,Y,Z", value_parser = crate::spec::vec3_value, allow_hyphen_values = true))]
     pub normal: Option<DVec3>,
-    /// `--size` (scene units).
+    /// Letter height (--text) or drawing height (--svg) in scene units [default: fit the reach].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "H"))]
     pub size: Option<f64>,
-    /// `--lift` (scene units).
+    /// How far the pen lifts between strokes, in scene units [default: 4% of the reach].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "D"))]
     pub lift: Option<f64>,
-    /// `--spacing` (scene units).
+    /// Even spacing of the targets along the path, in scene units [default: an even tip speed at
+    /// the chosen fps; the lab circle keeps its 150 targets].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "D"))]
     pub spacing: Option<f64>,
-    /// `--pen-speed` (scene units per second).
+    /// Pen speed in scene units per second: one target per frame, every stroke and every lift
+    /// starting and ending at rest (instead of --spacing).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "V"))]
+    #[serde(alias = "pen-speed")]
     pub pen_speed: Option<f64>,
-    /// `--ease` (seconds).
+    /// Seconds for the pen to reach --pen-speed from rest, and to stop [default: 0.15].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "S"))]
     pub ease: Option<f64>,
-    /// `-o`.
+    /// Output file: .glb, or .gltf with a .bin beside it.
+    #[cfg_attr(feature = "cli", arg(short = 'o', long, value_name = "FILE"))]
     pub output: PathBuf,
-    /// `--report`.
+    /// Write a JSON report of the bake (written by the caller: the job returns the report).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.json"))]
     pub report: Option<PathBuf>,
+    /// Name for the job in summaries.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "NAME"))]
+    pub name: Option<String>,
 }
 
 impl Default for IkJob {
@@ -175,12 +221,12 @@ impl Default for IkJob {
             rig: None,
             chain: None,
             solver: SolverKind::Fabrik,
-            max_iterations: 100,
-            tolerance: 1e-4,
+            max_iterations: defaults::MAX_ITERATIONS,
+            tolerance: defaults::TOLERANCE,
             max_angle: None,
             pole: None,
             limit: Vec::new(),
-            fps: 30.0,
+            fps: defaults::FPS,
             curve: None,
             text: None,
             font: None,
@@ -194,9 +240,21 @@ impl Default for IkJob {
             spacing: None,
             pen_speed: None,
             ease: None,
-            output: PathBuf::from("exports/ik.glb"),
+            output: PathBuf::new(),
             report: None,
+            name: None,
         }
+    }
+}
+
+impl IkJob {
+    /// The name of the job: `name`, else the output's file stem.
+    pub fn display_name(&self) -> String {
+        self.name.clone().unwrap_or_else(|| {
+            self.output
+                .file_stem()
+                .map_or_else(|| "ik".into(), |s| s.to_string_lossy().into())
+        })
     }
 }
 
@@ -240,7 +298,7 @@ pub struct IkReport {
     /// Files written.
     pub files: Vec<PathBuf>,
     /// What the bake repaired or could not do as asked (printed on the terminal too).
-    pub warnings: Vec<String>,
+    pub warnings: Vec<Text>,
 }
 
 struct Setup {
@@ -249,7 +307,7 @@ struct Setup {
     lab: bool,
 }
 
-fn positive_opt(option: &str, v: Option<f64>) -> Result<()> {
+fn positive_opt(option: Param, v: Option<f64>) -> Result<()> {
     if let Some(v) = v {
         crate::spec::positive(option, v)?;
     }
@@ -266,21 +324,36 @@ fn setup_chain(job: &IkJob) -> Result<Setup> {
     .filter(|&&b| b)
     .count();
     if sources != 1 {
-        return Err(Error::option("--preset/--joints/--rig", "give exactly one chain: --preset lab-arm, --joints N [--length L], or --rig FILE --chain ROOT..TIP"));
+        return Err(Error::param_value(
+            Param::Preset,
+            text!(
+                "give exactly one chain: ",
+                Param::Preset,
+                " lab-arm, ",
+                Param::Joints,
+                " N [",
+                Param::Length,
+                " L], or ",
+                Param::Rig,
+                " FILE ",
+                Param::Chain,
+                " ROOT..TIP"
+            ),
+        ));
     }
     if job.length.is_some() && job.joints.is_none() {
-        return Err(Error::option("--length", "only applies with --joints"));
+        return Err(Error::param_value(
+            Param::Length,
+            text!("only applies with ", Param::Joints),
+        ));
     }
     if job.chain.is_some() != job.rig.is_some() {
-        return Err(Error::option("--chain", "--rig and --chain go together"));
+        return Err(Error::param_value(
+            Param::Chain,
+            text!(Param::Rig, " and ", Param::Chain, " go together"),
+        ));
     }
-    if let Some(p) = &job.preset {
-        if p != LAB_ARM {
-            return Err(Error::option(
-                "--preset",
-                format!("`{p}`: expected {LAB_ARM}"),
-            ));
-        }
+    if let Some(IkPreset::LabArm) = job.preset {
         return Ok(Setup {
             chain: Chain::lab_arm(),
             rig: None,
@@ -309,7 +382,7 @@ fn setup_chain(job: &IkJob) -> Result<Setup> {
 fn board(job: &IkJob, lab: bool, root: DVec3, tip: DVec3, reach: f64) -> Result<(DVec3, DVec3)> {
     if let Some(c) = job.center {
         if !c.is_finite() {
-            return Err(Error::option("--center", "must be finite"));
+            return Err(Error::param_value(Param::Center, "must be finite"));
         }
     }
     let Some(n) = job.normal else {
@@ -322,8 +395,8 @@ fn board(job: &IkJob, lab: bool, root: DVec3, tip: DVec3, reach: f64) -> Result<
         return Ok((center, view));
     };
     if !n.is_finite() || n.length() < 1e-12 {
-        return Err(Error::option(
-            "--normal",
+        return Err(Error::param_value(
+            Param::Normal,
             format!("{n}: must be a finite, non-zero direction"),
         ));
     }
@@ -389,13 +462,25 @@ fn build_strokes(
     .filter(|&&b| b)
     .count();
     if sources != 1 {
-        return Err(Error::option(
-            "--curve/--text/--svg/--points",
-            "give exactly one target path",
+        return Err(Error::param_value(
+            Param::Curve,
+            text!(
+                "give exactly one target path: ",
+                Param::Curve,
+                ", ",
+                Param::Text,
+                ", ",
+                Param::Svg,
+                " or ",
+                Param::Points
+            ),
         ));
     }
     if job.font.is_some() && job.text.is_none() {
-        return Err(Error::option("--font", "only applies with --text"));
+        return Err(Error::param_value(
+            Param::Font,
+            text!("only applies with ", Param::Text),
+        ));
     }
     let default_radius = |heart: bool| {
         let base = if heart { 0.5 } else { 0.6 };
@@ -489,17 +574,20 @@ fn build_strokes(
 /// errors. Frames that do not converge are reported, not errors.
 pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<IkReport> {
     let t0 = Instant::now();
-    crate::spec::positive("--fps", job.fps)?;
-    crate::spec::positive("--tolerance", job.tolerance)?;
+    crate::spec::positive(Param::Fps, job.fps)?;
+    crate::spec::positive(Param::Tolerance, job.tolerance)?;
     if job.max_iterations == 0 {
-        return Err(Error::option("--max-iterations", "0: must be at least 1"));
+        return Err(Error::param_value(
+            Param::MaxIterations,
+            "0: must be at least 1",
+        ));
     }
-    positive_opt("--max-angle", job.max_angle)?;
-    positive_opt("--radius", job.radius)?;
-    positive_opt("--size", job.size)?;
-    positive_opt("--spacing", job.spacing)?;
+    positive_opt(Param::MaxAngle, job.max_angle)?;
+    positive_opt(Param::Radius, job.radius)?;
+    positive_opt(Param::Size, job.size)?;
+    positive_opt(Param::Spacing, job.spacing)?;
     if let Some(l) = job.lift {
-        crate::spec::non_negative("--lift", l)?;
+        crate::spec::non_negative(Param::Lift, l)?;
     }
     let setup = setup_chain(job)?;
     let chain = &setup.chain;
@@ -515,18 +603,27 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     };
     let h = (center - root).dot(view);
     let disc = (reach * reach - h * h).max(0.0).sqrt();
-    positive_opt("--pen-speed", job.pen_speed)?;
+    positive_opt(Param::PenSpeed, job.pen_speed)?;
     if job.pen_speed.is_some() && job.spacing.is_some() {
-        return Err(Error::option(
-            "--pen-speed",
-            "give --pen-speed or --spacing, not both",
+        return Err(Error::param_value(
+            Param::PenSpeed,
+            text!(
+                "give ",
+                Param::PenSpeed,
+                " or ",
+                Param::Spacing,
+                ", not both"
+            ),
         ));
     }
     if let Some(e) = job.ease {
         if job.pen_speed.is_none() {
-            return Err(Error::option("--ease", "only applies with --pen-speed"));
+            return Err(Error::param_value(
+                Param::Ease,
+                text!("only applies with ", Param::PenSpeed),
+            ));
         }
-        crate::spec::non_negative("--ease", e)?;
+        crate::spec::non_negative(Param::Ease, e)?;
     }
     let spacing = match job.pen_speed {
         Some(v) => v / job.fps,
@@ -543,10 +640,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     let strokes = build_strokes(job, &plane, reach, setup.lab, disc, spacing)?;
     let targets: Vec<PenTarget> = path::pen_path_timed(&strokes, timing, -view * lift);
     if targets.is_empty() {
-        return Err(Error::option(
-            "--curve/--text/--svg/--points",
-            "the path has no points",
-        ));
+        return Err(Error::param_value(Param::Curve, "the path has no points"));
     }
 
     let config = SolverConfig {
@@ -592,7 +686,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     let mut warnings = Vec::new();
     let written = match setup.rig {
         Some((doc, nodes)) => {
-            warnings.extend(doc.warnings.iter().cloned());
+            warnings.extend(doc.warnings.iter().map(|w| Text::from(w.as_str())));
             write_rig_gltf(&job.output, doc, chain, &nodes, &frames)?
         }
         None => write_chain_gltf(&job.output, chain, &rest, &frames, &targets, &tips)?,
@@ -618,15 +712,6 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
         files: written.files,
         warnings,
     };
-    if let Some(path) = &job.report {
-        report.seconds_total = t0.elapsed().as_secs_f64();
-        report.files.push(path.clone());
-        let bytes = serde_json::to_vec_pretty(&report).map_err(|error| Error::Json {
-            path: path.clone(),
-            error,
-        })?;
-        crate::export::atomic::write_atomically(path, bytes)?;
-    }
     report.seconds_total = t0.elapsed().as_secs_f64();
     Ok(report)
 }
@@ -639,7 +724,7 @@ mod tests {
     fn lab_circle_defaults_to_150_targets() {
         let dir = tempfile::tempdir().unwrap();
         let job = IkJob {
-            preset: Some(LAB_ARM.into()),
+            preset: Some(IkPreset::LabArm),
             curve: Some(CurveKind::Circle),
             output: dir.path().join("c.glb"),
             ..Default::default()
@@ -676,32 +761,25 @@ mod tests {
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("--preset"), "{e}");
+        assert!(e.contains("`preset`"), "{e}");
+        assert!(toml::from_str::<IkJob>("preset = \"robot\"")
+            .unwrap_err()
+            .to_string()
+            .contains("robot"));
         let e = bake_ik(
             &IkJob {
-                preset: Some("robot".into()),
-                curve: Some(CurveKind::Circle),
+                preset: Some(IkPreset::LabArm),
                 ..Default::default()
             },
             &mut |_, _| {},
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("--preset") && e.contains("robot"), "{e}");
-        let e = bake_ik(
-            &IkJob {
-                preset: Some(LAB_ARM.into()),
-                ..Default::default()
-            },
-            &mut |_, _| {},
-        )
-        .unwrap_err()
-        .to_string();
-        assert!(e.contains("--curve"), "{e}");
+        assert!(e.contains("`curve`"), "{e}");
         assert!("cdd"
             .parse::<SolverKind>()
             .unwrap_err()
             .to_string()
-            .contains("--solver"));
+            .contains("`solver`"));
     }
 }

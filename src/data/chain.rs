@@ -13,6 +13,7 @@
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 
 use crate::error::{Error, Result};
+use crate::param::Param;
 
 /// One joint of a chain: its rest local transform and name.
 #[derive(Debug, Clone, PartialEq)]
@@ -137,12 +138,12 @@ impl Chain {
     /// [`Error::InvalidOption`] for `n < 2` (`--joints`) or a non-positive length (`--length`).
     pub fn straight(n: usize, length: f64) -> Result<Self> {
         if n < 2 {
-            return Err(Error::option(
-                "--joints",
+            return Err(Error::param_value(
+                Param::Joints,
                 format!("{n}: a chain needs at least 2 joints"),
             ));
         }
-        crate::spec::positive("--length", length)?;
+        crate::spec::positive(Param::Length, length)?;
         let bone = length / (n - 1) as f64;
         let joints = (0..n)
             .map(|i| {
@@ -306,11 +307,11 @@ mod tests {
         assert!(Chain::straight(1, 1.0)
             .unwrap_err()
             .to_string()
-            .contains("--joints"));
+            .contains("`joints`"));
         assert!(Chain::straight(3, -1.0)
             .unwrap_err()
             .to_string()
-            .contains("--length"));
+            .contains("`length`"));
         let c = Chain::straight(4, 3.0).unwrap();
         assert_abs_diff_eq!(c.reach(&c.rest_pose()), 3.0, epsilon = 1e-12);
     }

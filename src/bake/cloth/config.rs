@@ -1,0 +1,419 @@
+//! The cloth job's configuration: every parameter of a cloth bake, with its default, defined
+//! once. Scene files deserialise into [`ClothJob`] (keys are its field names, see
+//! [`crate::param::Param`]); the `scenebake cloth` command line is derived from it (feature
+//! `cli`), so both take exactly the same parameters and spellings.
+
+use std::path::PathBuf;
+
+use glam::DVec3;
+
+use crate::cloth::collide::{ColliderSpec, DEFAULT_FRICTION};
+use crate::cloth::material::MaterialPreset;
+use crate::cloth::pins::PinSpec;
+use crate::cloth::SolverKind;
+use crate::error::{Error, Result};
+use crate::export::vat::DEFAULT_MAX_WIDTH;
+use crate::export::{BasisSize, Interpolation, QuantizeMode, SparseMode, VatMode};
+use crate::param::Param;
+use crate::spec::de;
+
+/// Where the body comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ClothSource {
+    /// An `.obj`, `.gltf`/`.glb` or `.tet` file.
+    File(PathBuf),
+    /// The labs' grid with `resolution` cells per side.
+    LabCloth {
+        /// Cells per side (N); the grid has (N+1)² particles.
+        resolution: u32,
+    },
+}
+
+/// Generated cloth scenes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum ClothPreset {
+    /// The labs' 2×2 m grid pinned at two corners.
+    LabCloth,
+}
+
+/// The up axis of an input file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum UpAxis {
+    /// Y up (glTF's convention; kept as it is).
+    #[default]
+    Y,
+    /// Z up (turned to Y up).
+    Z,
+}
+
+/// An on/off switch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum Switch {
+    /// Enabled.
+    #[default]
+    On,
+    /// Disabled.
+    Off,
+}
+
+/// Default values for meshes loaded from files (the lab-cloth preset brings its own, see
+/// [`crate::cloth::preset::defaults`]).
+pub mod defaults {
+    /// Frames baked after the initial state.
+    pub const FRAMES: usize = 120;
+    /// Frames per second.
+    pub const FPS: f64 = 30.0;
+    /// The labs' spring stiffness, N/m per spring.
+    pub const STIFFNESS: f64 = 1000.0;
+    /// The labs' bending-spring stiffness, N/m per spring.
+    pub const BEND_STIFFNESS: f64 = 2.0;
+    /// Mass-proportional damping, 1/s.
+    pub const DAMPING: f64 = 0.5;
+    /// Areal density of surfaces with the labs' springs, kg/m² (a light cotton).
+    pub const AREAL_DENSITY: f64 = 0.2;
+    /// Density of `.tet` volumes, kg/m³ (a soft foam).
+    pub const VOLUME_DENSITY: f64 = 50.0;
+    /// Gravity, m/s².
+    pub const GRAVITY: [f64; 3] = [0.0, -9.81, 0.0];
+    /// The fast solver's cap on local/global iterations per step.
+    pub const ITERATIONS: usize = 500;
+    /// Every solver stops a step when ρ = ‖∇g‖ / ‖M·g‖ falls below this (the RMS unbalanced
+    /// force per particle relative to its weight, roughly). 0.1 is visually converged on
+    /// garments: hem heights within 0.5 mm of a 1e-3 solve (docs/performance.md).
+    pub const TOLERANCE: f64 = 0.1;
+    /// The solver when none is named.
+    pub const SOLVER: crate::cloth::SolverKind = crate::cloth::SolverKind::Newton;
+    /// Cells per side of the lab-cloth grid.
+    pub const RESOLUTION: u32 = 10;
+    /// Solver steps per frame.
+    pub const SUBSTEPS: usize = 1;
+}
+
+/// One cloth bake. `None` means "the default": the preset's value for presets, else
+/// [`defaults`]. Lengths are metres, masses kilograms, times seconds, in the glTF frame (+Y up)
+/// after `up`, `scale` and `translate` place the input.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+#[cfg_attr(feature = "cli", command(allow_negative_numbers = true))]
+pub struct ClothJob {
+    /// Mesh to simulate: .obj, .gltf/.glb (surface) or .tet (volume).
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            required_unless_present = "preset",
+            conflicts_with = "preset",
+            value_name = "INPUT"
+        )
+    )]
+    pub input: Option<PathBuf>,
+    /// A generated reference scene instead of a file.
+    #[cfg_attr(feature = "cli", arg(long, value_enum))]
+    pub preset: Option<ClothPreset>,
+    /// Cells per side of the lab-cloth grid ((N+1)² particles over the same 2×2 m).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::RESOLUTION, value_name = "N"))]
+    pub resolution: u32,
+    /// Output file: .glb, or .gltf with a .bin beside it.
+    #[cfg_attr(feature = "cli", arg(short = 'o', long, value_name = "FILE"))]
+    pub output: PathBuf,
+    /// Write a JSON report of the bake (written by the caller: the job returns the report).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.json"))]
+    pub report: Option<PathBuf>,
+    /// Name of the glTF mesh, node and animation, and of the job in summaries (default: the
+    /// input's file stem).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "NAME"))]
+    pub name: Option<String>,
+    /// Frames to bake after the initial state [default: 120; lab-cloth 120].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
+    pub frames: Option<usize>,
+    /// Frames per second; the time step is 1/fps/substeps [default: 30; lab-cloth 60].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "F"))]
+    pub fps: Option<f64>,
+    /// Solver steps per frame.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::SUBSTEPS, value_name = "S"))]
+    pub substeps: usize,
+    /// Time integrator: newton (converged implicit Euler, the default) or fast (local/global).
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = defaults::SOLVER))]
+    pub solver: SolverKind,
+    /// Every solver stops a step when ρ = ‖∇g‖/‖M·g‖ (unbalanced force relative to the weight)
+    /// falls below R; steps that end above it are flagged.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::TOLERANCE, value_name = "R"))]
+    pub tolerance: f64,
+    /// Iterations per step at most, for whichever solver runs [default: newton 50, fast 500].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
+    #[serde(alias = "max-iterations")]
+    pub max_iterations: Option<usize>,
+    /// Local/global iterations per step at most (fast solver; alias of --max-iterations).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::ITERATIONS, value_name = "K"))]
+    pub iterations: usize,
+    /// Newton iterations per step at most (alias of --max-iterations for Newton).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = crate::cloth::newton::DEFAULT_MAX_ITERATIONS, value_name = "N"))]
+    #[serde(alias = "max-newton")]
+    pub max_newton: usize,
+    /// The fabric of a surface mesh, mapped onto its edges by rest length and area [default:
+    /// cotton].
+    #[cfg_attr(feature = "cli", arg(long, value_enum))]
+    pub material: Option<MaterialPreset>,
+    /// The fabric's stretch modulus in N/m (force per unit width per unit strain).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N/M"))]
+    pub stretch: Option<f64>,
+    /// The fabric's bending rigidity in N·m.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N·M"))]
+    pub bend: Option<f64>,
+    /// The fabric's compression stiffness as a fraction of its stretch stiffness (0..1).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FRACTION"))]
+    pub compression: Option<f64>,
+    /// Every spring's stiffness in N/m, symmetric in tension and compression: the labs' model
+    /// instead of a material [lab-cloth 100; .tet 1000].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "K"))]
+    pub stiffness: Option<f64>,
+    /// Bending-spring stiffness in N/m, 0 for none (the labs' model) [default with --stiffness:
+    /// 2; lab-cloth = --stiffness].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "K"))]
+    #[serde(alias = "bend-stiffness")]
+    pub bend_stiffness: Option<f64>,
+    /// Mass-proportional damping in 1/s, 0 for plain implicit Euler [default: 0.5; lab-cloth 0.2].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "C"))]
+    pub damping: Option<f64>,
+    /// Mass per particle in kg (instead of --density) [lab-cloth: 1].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "KG"))]
+    pub mass: Option<f64>,
+    /// Density: kg/m² for surfaces [default: the material's], kg/m³ for .tet volumes [default 50].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "D"))]
+    pub density: Option<f64>,
+    /// Gravity in m/s² [default: 0,-9.81,0; lab-cloth 0,-0.3,0].
+    #[serde(deserialize_with = "de::opt_vec3")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "X,Y,Z", value_parser = crate::spec::vec3_value, allow_hyphen_values = true))]
+    pub gravity: Option<DVec3>,
+    /// Hold particles fixed (repeatable): index:I,J,... (zero-based, file order),
+    /// box:X0,Y0,Z0,X1,Y1,Z1, or group:NAME (an OBJ group or object).
+    #[serde(deserialize_with = "de::spec_list")]
+    #[cfg_attr(feature = "cli", arg(long = "pin", value_name = "SPEC", value_parser = crate::spec::parsed_value::<PinSpec>, allow_hyphen_values = true))]
+    pub pin: Vec<PinSpec>,
+    /// Only this object or group of an OBJ (default: all, merged into one body).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "NAME"))]
+    pub object: Option<String>,
+    /// Which mesh of a glTF input (default: the first).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "NAME"))]
+    pub mesh: Option<String>,
+    /// Weight interpolation between frames.
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Interpolation::Linear))]
+    pub interpolation: Interpolation,
+    /// Write NORMAL deltas in the morph targets.
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Switch::On))]
+    pub normals: Switch,
+    /// Also write a vertex-animation texture: FILE.exr (32-bit float RGB positions, one row per
+    /// frame from frame 0 at the top, one column per glTF vertex), FILE.normals.exr (unit normals,
+    /// same layout; not with --normals off) and FILE.json (layout, bounds, fps, glTF name).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.exr"))]
+    pub vat: Option<PathBuf>,
+    /// What the VAT's RGB stores: object-space positions, or offsets from the base mesh (frame 0).
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = VatMode::Absolute))]
+    #[serde(alias = "vat-mode")]
+    pub vat_mode: VatMode,
+    /// Most pixels per VAT row; meshes with more vertices wrap into several rows per frame
+    /// (frame f, vertex v → row f*rows_per_frame + v/width, column v%width).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_MAX_WIDTH, value_name = "PIXELS"))]
+    #[serde(alias = "vat-max-width")]
+    pub vat_max_width: usize,
+    /// Keep only the frames needed for linear playback to reproduce every baked frame within T
+    /// (scene units, largest vertex distance); first and last frames are always kept
+    /// [default: off, one morph target per frame].
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_name = "T", allow_negative_numbers = true)
+    )]
+    #[serde(alias = "keyframe-tolerance")]
+    pub keyframe_tolerance: Option<f64>,
+    /// Store morph-target deltas as sparse accessors (changed vertices only) where smaller.
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SparseMode::Auto))]
+    pub sparse: SparseMode,
+    /// Write the motion as a base shape plus K basis shapes (morph targets) with per-frame
+    /// weights, from a truncated SVD of the frame deltas, instead of one target per frame;
+    /// `auto` picks the fewest targets that keep every baked frame within --basis-tolerance
+    /// (measured as a player computes it).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "K|auto", value_parser = crate::spec::parsed_value::<BasisSize>))]
+    pub basis: Option<BasisSize>,
+    /// Largest vertex distance (scene units) allowed between a played frame and the bake, for
+    /// --basis auto and --quantize auto [default: --keyframe-tolerance, else 0.001].
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_name = "M", allow_negative_numbers = true)
+    )]
+    #[serde(alias = "basis-tolerance")]
+    pub basis_tolerance: Option<f64>,
+    /// Most morph targets written (for engines that cap them); an error if the tolerance
+    /// cannot be met within N.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
+    #[serde(alias = "max-targets")]
+    pub max_targets: Option<usize>,
+    /// KHR_mesh_quantization for a --basis cache: int16 positions and deltas, int8 normals,
+    /// dequantised by the node's scale and translation; auto quantises when the measured error
+    /// stays within --basis-tolerance [default: auto with --basis].
+    #[cfg_attr(feature = "cli", arg(long, value_enum, value_name = "MODE"))]
+    pub quantize: Option<QuantizeMode>,
+    /// Scale the input file about its origin by S (before --translate; not for presets).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 1.0, value_name = "S"))]
+    pub scale: f64,
+    /// Move the input file by this offset in metres, after --scale; pins and colliders are given
+    /// in the placed coordinates.
+    #[serde(deserialize_with = "de::opt_vec3")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "X,Y,Z", value_parser = crate::spec::vec3_value, allow_hyphen_values = true))]
+    pub translate: Option<DVec3>,
+    /// The input file's up axis: z turns a Z-up file (Blender, many OBJ exporters) to glTF's
+    /// Y-up, (x, y, z) → (x, z, −y), before --scale and --translate; pins, colliders and
+    /// --gravity are in the turned (Y-up) coordinates.
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = UpAxis::Y))]
+    pub up: UpAxis,
+    /// A static collider (repeatable): plane:NX,NY,NZ,D (the half-space n·x ≤ D is solid, e.g.
+    /// plane:0,1,0,0 is the ground y = 0), sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1, or
+    /// mesh:FILE.obj (closed meshes are solid, open ones two-sided). Written into the glTF as
+    /// static meshes.
+    #[serde(deserialize_with = "de::spec_list")]
+    #[cfg_attr(feature = "cli", arg(long = "collider", value_name = "SPEC", value_parser = crate::spec::parsed_value::<ColliderSpec>, allow_hyphen_values = true))]
+    pub collider: Vec<ColliderSpec>,
+    /// How far particles stay from collider surfaces, in metres [default: a quarter of the
+    /// mean edge length].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "M"))]
+    pub thickness: Option<f64>,
+    /// Coulomb friction coefficient against colliders (0 = ice).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_FRICTION, value_name = "MU"))]
+    pub friction: f64,
+    /// Mean wind velocity in m/s; turns on aerodynamic drag and lift on every triangle.
+    #[serde(deserialize_with = "de::opt_vec3")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "X,Y,Z", value_parser = crate::spec::vec3_value, allow_hyphen_values = true))]
+    pub wind: Option<DVec3>,
+    /// Drag coefficient of the triangles (pressure along the normal) [default with wind: 1.0].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CD"))]
+    pub drag: Option<f64>,
+    /// Lift coefficient of the triangles (force across the flow) [default with wind: 0.3].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CL"))]
+    pub lift: Option<f64>,
+    /// Gusts: RMS gust speed as a fraction of the wind speed (0 = steady wind).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.0, value_name = "T"))]
+    pub turbulence: f64,
+    /// Seed of the gusts (the same seed gives the same bake).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0, value_name = "N"))]
+    pub seed: u64,
+}
+
+impl Default for ClothJob {
+    fn default() -> Self {
+        ClothJob {
+            input: None,
+            preset: None,
+            resolution: defaults::RESOLUTION,
+            output: PathBuf::new(),
+            report: None,
+            name: None,
+            frames: None,
+            fps: None,
+            substeps: defaults::SUBSTEPS,
+            solver: defaults::SOLVER,
+            tolerance: defaults::TOLERANCE,
+            max_iterations: None,
+            iterations: defaults::ITERATIONS,
+            max_newton: crate::cloth::newton::DEFAULT_MAX_ITERATIONS,
+            material: None,
+            stretch: None,
+            bend: None,
+            compression: None,
+            stiffness: None,
+            bend_stiffness: None,
+            damping: None,
+            mass: None,
+            density: None,
+            gravity: None,
+            pin: Vec::new(),
+            object: None,
+            mesh: None,
+            interpolation: Interpolation::Linear,
+            normals: Switch::On,
+            vat: None,
+            vat_mode: VatMode::Absolute,
+            vat_max_width: DEFAULT_MAX_WIDTH,
+            keyframe_tolerance: None,
+            sparse: SparseMode::Auto,
+            basis: None,
+            basis_tolerance: None,
+            max_targets: None,
+            quantize: None,
+            scale: 1.0,
+            translate: None,
+            up: UpAxis::Y,
+            collider: Vec::new(),
+            thickness: None,
+            friction: DEFAULT_FRICTION,
+            wind: None,
+            drag: None,
+            lift: None,
+            turbulence: 0.0,
+            seed: 0,
+        }
+    }
+}
+
+impl ClothJob {
+    /// A job with every other parameter at its default.
+    pub fn new(source: ClothSource, output: PathBuf) -> Self {
+        let mut job = ClothJob {
+            output,
+            ..ClothJob::default()
+        };
+        match source {
+            ClothSource::File(path) => job.input = Some(path),
+            ClothSource::LabCloth { resolution } => {
+                job.preset = Some(ClothPreset::LabCloth);
+                job.resolution = resolution;
+            }
+        }
+        job
+    }
+
+    /// Where the body comes from: `input` or `preset`, exactly one.
+    ///
+    /// # Errors
+    /// [`Error::Param`] naming `input` when neither or both are given.
+    pub fn source(&self) -> Result<ClothSource> {
+        match (&self.input, self.preset) {
+            (Some(path), None) => Ok(ClothSource::File(path.clone())),
+            (None, Some(ClothPreset::LabCloth)) => Ok(ClothSource::LabCloth {
+                resolution: self.resolution,
+            }),
+            (Some(_), Some(_)) => Err(Error::param_value(
+                Param::Input,
+                crate::text!("give an input file or ", Param::Preset, ", not both"),
+            )),
+            (None, None) => Err(Error::param_value(
+                Param::Input,
+                crate::text!("a mesh file is required (or ", Param::Preset, " lab-cloth)"),
+            )),
+        }
+    }
+
+    /// Whether the input is turned from Z-up to Y-up.
+    pub fn up_z(&self) -> bool {
+        self.up == UpAxis::Z
+    }
+
+    /// The name of the job and of what it writes: `name`, else the input's file stem, else
+    /// the preset's name.
+    pub fn display_name(&self) -> String {
+        if let Some(n) = &self.name {
+            return n.clone();
+        }
+        match (&self.input, self.preset) {
+            (Some(p), _) => p
+                .file_stem()
+                .map_or_else(|| p.display().to_string(), |s| s.to_string_lossy().into()),
+            (None, Some(ClothPreset::LabCloth)) => "lab_cloth".into(),
+            (None, None) => "cloth".into(),
+        }
+    }
+}

@@ -1,0 +1,155 @@
+//! What a cloth bake did: the report it returns (the binary writes it as JSON).
+
+use std::path::PathBuf;
+
+use crate::cloth::material::{Material, MaterialPreset};
+use crate::cloth::SolverKind;
+use crate::export::vat::VatManifest;
+use crate::export::{BasisStats, CacheStats};
+use crate::param::Text;
+
+/// What a cloth bake did, as written by `--report`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ClothReport {
+    /// The input file or preset.
+    pub input: String,
+    /// Particles simulated (pinned included).
+    pub particles: usize,
+    /// Springs in the model.
+    pub springs: usize,
+    /// Springs by kind.
+    pub springs_by_kind: SpringCounts,
+    /// Pinned particles.
+    pub pinned: usize,
+    /// Triangles exported.
+    pub triangles: usize,
+    /// Frames baked after the initial state.
+    pub frames: usize,
+    /// Frames per second.
+    pub fps: f64,
+    /// Steps per frame.
+    pub substeps: usize,
+    /// The solver.
+    pub solver: SolverKind,
+    /// Time step h, seconds.
+    pub time_step: f64,
+    /// The stopping tolerance on ρ = ‖∇g‖ / ‖M·g‖ every step was solved to.
+    pub tolerance: f64,
+    /// The iteration cap per step.
+    pub max_iterations: usize,
+    /// The fabric, when the body uses the material model (`None`: the labs' springs).
+    pub material: Option<MaterialReport>,
+    /// Spring stiffness used, N/m (the labs' model; the largest spring's for a material).
+    pub stiffness: f64,
+    /// Bending stiffness used, N/m (bending springs of the labs' model; 0 for a material).
+    pub bend_stiffness: f64,
+    /// Damping used, 1/s.
+    pub damping: f64,
+    /// Gravity used, m/s².
+    pub gravity: [f64; 3],
+    /// Total mass, kg.
+    pub total_mass: f64,
+    /// Solver iterations per frame (summed over substeps).
+    pub iterations: Vec<usize>,
+    /// Relative residual ρ = ‖∇g‖/‖M·g‖ at the end of each frame (worst substep).
+    pub residuals: Vec<f64>,
+    /// Frames with a step that ended above the tolerance.
+    pub unconverged_frames: Vec<usize>,
+    /// Seconds spent simulating.
+    pub seconds_simulate: f64,
+    /// Milliseconds per frame.
+    pub ms_per_frame: f64,
+    /// Milliseconds per solver iteration.
+    pub ms_per_iteration: f64,
+    /// Seconds spent writing the output.
+    pub seconds_export: f64,
+    /// The output file(s).
+    pub output: Vec<PathBuf>,
+    /// Bytes written (every output file, VAT included).
+    pub output_bytes: u64,
+    /// The morph cache: targets, kept frames, sparse accessors, sizes.
+    pub cache: CacheReport,
+    /// The vertex-animation texture, when `--vat` was given.
+    pub vat: Option<VatReport>,
+    /// Colliders, contacts and wind, when any.
+    pub environment: Option<EnvironmentReport>,
+    /// Non-fatal quirks of the input.
+    pub warnings: Vec<Text>,
+}
+
+/// The fabric of a material-model bake.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MaterialReport {
+    /// The preset named (or the default), before `--stretch`/`--bend`/`--density` overrides.
+    pub preset: MaterialPreset,
+    /// The figures used.
+    #[serde(flatten)]
+    pub material: Material,
+}
+
+/// The morph cache as written.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CacheReport {
+    /// `--keyframe-tolerance`, scene units (`None`: every frame kept).
+    pub keyframe_tolerance: Option<f64>,
+    /// Bytes of the glTF file(s) (`.glb`, or `.gltf` plus `.bin`).
+    pub gltf_bytes: u64,
+    /// Targets, kept frames, largest interpolation error against the full bake, accessors.
+    #[serde(flatten)]
+    pub stats: CacheStats,
+    /// The morph basis, when `--basis` was given: K, measured error, quantisation, bytes per
+    /// part.
+    pub basis: Option<BasisStats>,
+}
+
+/// The vertex-animation texture as written.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct VatReport {
+    /// The images and the JSON.
+    pub files: Vec<PathBuf>,
+    /// Their total size.
+    pub bytes: u64,
+    /// What the JSON says (layout, bounds, mode).
+    pub manifest: VatManifest,
+}
+
+/// The environment of a bake, as used.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct EnvironmentReport {
+    /// Each collider, described.
+    pub colliders: Vec<String>,
+    /// Collision thickness used, m.
+    pub thickness: f64,
+    /// Coulomb friction coefficient.
+    pub friction: f64,
+    /// Particles touching a collider at the end of each frame.
+    pub contacts: Vec<usize>,
+    /// The wind, when any.
+    pub wind: Option<WindReport>,
+}
+
+/// The wind of a bake, as used.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct WindReport {
+    /// Mean wind velocity, m/s.
+    pub velocity: [f64; 3],
+    /// Drag coefficient.
+    pub drag: f64,
+    /// Lift coefficient.
+    pub lift: f64,
+    /// Gust strength relative to the wind speed.
+    pub turbulence: f64,
+    /// Gust seed.
+    pub seed: u64,
+}
+
+/// Spring counts by kind.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct SpringCounts {
+    /// Along edges.
+    pub stretch: usize,
+    /// Across grid cells.
+    pub shear: usize,
+    /// Bending.
+    pub bend: usize,
+}

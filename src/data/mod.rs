@@ -1,0 +1,11 @@
+//! The data that flows from solvers to writers, owned by neither: frame caches of simulated
+//! positions, static meshes (colliders), and joint chains with their poses. `cloth` and `ik`
+//! produce them, `export` writes them; neither side imports the other.
+
+pub mod chain;
+pub mod frames;
+pub mod statics;
+
+pub use chain::{Chain, Joint, Pose};
+pub use frames::FrameCache;
+pub use statics::StaticMesh;

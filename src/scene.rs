@@ -1,0 +1,464 @@
+//! Scene files: several jobs in one TOML file, run together.
+//!
+//! A scene lists `[[cloth]]` and `[[ik]]` tables; each deserialises straight into a
+//! [`ClothJob`] or an [`IkJob`], its keys the config's fields (the parameters' [`Param::key`]s:
+//! `frames = 120`, `pin = ["box:..."]`, `gravity = "0,-9.81,0"` or `[0, -9.81, 0]`). Relative
+//! paths (inputs, outputs, reports, rigs, drawings, font files, mesh colliders) are relative to
+//! the scene file. Jobs are independent: [`Scene::jobs`] may run in any order or in parallel.
+//!
+//! ```no_run
+//! let scene = scenebake::scene::Scene::load("scenes/demo.toml".as_ref())?;
+//! for job in &scene.jobs {
+//!     let report = job.job.run(&mut |_done, _total| {})?;
+//!     println!("{}: {} frames", job.name, report.frames());
+//! }
+//! # Ok::<(), scenebake::Error>(())
+//! ```
+//!
+//! [`Param::key`]: crate::param::Param::key
+
+use std::path::{Component, Path, PathBuf};
+
+use serde::de::{self, Deserialize, Visitor};
+
+use crate::bake::{bake_cloth, bake_ik, ClothJob, ClothReport, IkJob, IkReport};
+use crate::cloth::collide::ColliderSpec;
+use crate::error::{Error, Result};
+
+/// A loaded scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// The scene file.
+    pub path: PathBuf,
+    /// Its jobs: every `[[cloth]]` table in file order, then every `[[ik]]` table.
+    pub jobs: Vec<SceneJob>,
+}
+
+/// One job of a scene.
+#[derive(Debug, Clone)]
+pub struct SceneJob {
+    /// The job's `name`, or `cloth1`, `ik2`... by kind and position.
+    pub name: String,
+    /// The job, paths resolved against the scene file's folder.
+    pub job: Job,
+}
+
+/// A job of either kind.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Job {
+    /// A cloth bake.
+    Cloth(Box<ClothJob>),
+    /// An IK bake.
+    Ik(Box<IkJob>),
+}
+
+/// What a job returns.
+#[derive(Debug, Clone, serde::Serialize)]
+#[serde(untagged)]
+pub enum Report {
+    /// A cloth bake's report.
+    Cloth(Box<ClothReport>),
+    /// An IK bake's report.
+    Ik(Box<IkReport>),
+}
+
+impl Report {
+    /// Frames baked.
+    pub fn frames(&self) -> usize {
+        match self {
+            Report::Cloth(r) => r.frames,
+            Report::Ik(r) => r.frames,
+        }
+    }
+
+    /// The report's warnings.
+    pub fn warnings(&self) -> &[crate::param::Text] {
+        match self {
+            Report::Cloth(r) => &r.warnings,
+            Report::Ik(r) => &r.warnings,
+        }
+    }
+}
+
+impl Job {
+    /// `cloth` or `ik`: the job's table name in scene files.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Job::Cloth(_) => "cloth",
+            Job::Ik(_) => "ik",
+        }
+    }
+
+    /// The main output file.
+    pub fn output(&self) -> &Path {
+        match self {
+            Job::Cloth(j) => &j.output,
+            Job::Ik(j) => &j.output,
+        }
+    }
+
+    /// Where the caller should write the job's report, when asked.
+    pub fn report_path(&self) -> Option<&Path> {
+        match self {
+            Job::Cloth(j) => j.report.as_deref(),
+            Job::Ik(j) => j.report.as_deref(),
+        }
+    }
+
+    /// Frames the job will bake, when known before it runs (for progress displays).
+    pub fn frames_hint(&self) -> Option<usize> {
+        match self {
+            Job::Cloth(j) => Some(j.frames.unwrap_or(crate::bake::cloth::defaults::FRAMES)),
+            Job::Ik(_) => None,
+        }
+    }
+
+    /// Runs the job; `progress(done, total)` is called as frames are baked.
+    ///
+    /// # Errors
+    /// The job's own errors ([`bake_cloth`], [`bake_ik`]).
+    pub fn run(&self, progress: &mut dyn FnMut(usize, usize)) -> Result<Report> {
+        Ok(match self {
+            Job::Cloth(j) => Report::Cloth(Box::new(bake_cloth(j, progress)?)),
+            Job::Ik(j) => Report::Ik(Box::new(bake_ik(j, progress)?)),
+        })
+    }
+}
+
+/// The tables a scene may hold.
+const KINDS: &[&str] = &["cloth", "ik"];
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    cloth: Vec<ClothJob>,
+    #[serde(default)]
+    ik: Vec<IkJob>,
+}
+
+impl Scene {
+    /// Reads and checks a scene file.
+    ///
+    /// # Errors
+    /// [`Error::Io`] when unreadable; [`Error::Scene`] naming the job and key for an unknown
+    /// table or key (with the likely intended spelling), a value of the wrong type or form
+    /// (with its line), no jobs, or two jobs with one name.
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Scene::parse(&text, path)
+    }
+
+    /// Parses a scene's text; `path` is where it came from (for messages and relative paths).
+    ///
+    /// # Errors
+    /// As [`Scene::load`].
+    pub fn parse(text: &str, path: &Path) -> Result<Scene> {
+        let fail = |job: Option<String>, message: String| Error::Scene {
+            path: path.to_path_buf(),
+            job,
+            message,
+        };
+        let table: toml::Table =
+            toml::from_str(text).map_err(|e| fail(None, e.to_string().trim_end().to_owned()))?;
+        check_keys(&table).map_err(|(job, m)| fail(job, m))?;
+        let file: SceneFile =
+            toml::from_str(text).map_err(|e| fail(None, e.to_string().trim_end().to_owned()))?;
+        let dir = path.parent().unwrap_or(Path::new(""));
+        let mut jobs = Vec::new();
+        for (i, mut job) in file.cloth.into_iter().enumerate() {
+            let name = job
+                .name
+                .clone()
+                .unwrap_or_else(|| format!("cloth{}", i + 1));
+            resolve_cloth(&mut job, dir);
+            if job.output.as_os_str().is_empty() {
+                return Err(fail(
+                    Some(format!("[[cloth]] job {} (`{name}`)", i + 1)),
+                    "`output` is required".into(),
+                ));
+            }
+            jobs.push(SceneJob {
+                name,
+                job: Job::Cloth(Box::new(job)),
+            });
+        }
+        for (i, mut job) in file.ik.into_iter().enumerate() {
+            let name = job.name.clone().unwrap_or_else(|| format!("ik{}", i + 1));
+            resolve_ik(&mut job, dir);
+            if job.output.as_os_str().is_empty() {
+                return Err(fail(
+                    Some(format!("[[ik]] job {} (`{name}`)", i + 1)),
+                    "`output` is required".into(),
+                ));
+            }
+            jobs.push(SceneJob {
+                name,
+                job: Job::Ik(Box::new(job)),
+            });
+        }
+        if jobs.is_empty() {
+            return Err(fail(
+                None,
+                "no jobs: a scene lists [[cloth]] and [[ik]] tables (see scenes/demo.toml)".into(),
+            ));
+        }
+        let mut names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
+        names.sort_unstable();
+        if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
+            return Err(fail(
+                None,
+                format!("two jobs are named `{}`; names must be unique", w[0]),
+            ));
+        }
+        Ok(Scene {
+            path: path.to_path_buf(),
+            jobs,
+        })
+    }
+}
+
+/// Unknown tables and keys, with the likely intended spelling.
+fn check_keys(table: &toml::Table) -> std::result::Result<(), (Option<String>, String)> {
+    for (kind, value) in table {
+        let fields = match kind.as_str() {
+            "cloth" => fields_of::<ClothJob>(),
+            "ik" => fields_of::<IkJob>(),
+            _ => {
+                let hint = did_you_mean(kind, KINDS.iter().copied())
+                    .map(|k| format!("did you mean [[{k}]]? "))
+                    .unwrap_or_default();
+                return Err((
+                    None,
+                    format!(
+                        "unknown table `{kind}` ({hint}jobs are [[{}]])",
+                        KINDS.join("]], [[")
+                    ),
+                ));
+            }
+        };
+        let Some(tables) = value.as_array() else {
+            return Err((
+                None,
+                format!("`{kind}` must be an array of tables: write [[{kind}]]"),
+            ));
+        };
+        for (i, t) in tables.iter().enumerate() {
+            let Some(t) = t.as_table() else {
+                return Err((None, format!("[[{kind}]] entry {} is not a table", i + 1)));
+            };
+            let name = match t.get("name") {
+                Some(toml::Value::String(s)) => s.clone(),
+                _ => format!("{kind}{}", i + 1),
+            };
+            for key in t.keys() {
+                // Multi-word keys may also be spelt with dashes, as the options are.
+                if !fields.contains(&key.replace('-', "_").as_str()) {
+                    let hint = did_you_mean(key, fields.iter().copied())
+                        .map(|k| format!("did you mean `{k}`? "))
+                        .unwrap_or_default();
+                    let mut known = fields.to_vec();
+                    known.sort_unstable();
+                    return Err((
+                        Some(format!("[[{kind}]] job {} (`{name}`)", i + 1)),
+                        format!("unknown key `{key}` ({hint}keys: {})", known.join(", ")),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The field names serde expects for `T` (a struct), read off its `Deserialize` impl.
+pub fn fields_of<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
+    struct Probe<'a>(&'a mut &'static [&'static str]);
+    impl<'de> de::Deserializer<'de> for Probe<'_> {
+        type Error = de::value::Error;
+        fn deserialize_any<V: Visitor<'de>>(
+            self,
+            _: V,
+        ) -> std::result::Result<V::Value, Self::Error> {
+            Err(de::Error::custom("probe"))
+        }
+        fn deserialize_struct<V: Visitor<'de>>(
+            self,
+            _: &'static str,
+            fields: &'static [&'static str],
+            _: V,
+        ) -> std::result::Result<V::Value, Self::Error> {
+            *self.0 = fields;
+            Err(de::Error::custom("probe"))
+        }
+        serde::forward_to_deserialize_any! {
+            bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes byte_buf
+            option unit unit_struct newtype_struct seq tuple tuple_struct map enum identifier
+            ignored_any
+        }
+    }
+    let mut fields: &'static [&'static str] = &[];
+    let _ = T::deserialize(Probe(&mut fields));
+    fields
+}
+
+fn resolve_cloth(job: &mut ClothJob, dir: &Path) {
+    let at = |p: &Path| lexically_normal(&dir.join(p));
+    job.input = job.input.as_deref().map(at);
+    job.output = at(&job.output);
+    job.report = job.report.as_deref().map(at);
+    job.vat = job.vat.as_deref().map(at);
+    for c in &mut job.collider {
+        if let ColliderSpec::Mesh(p) = c {
+            *p = at(p);
+        }
+    }
+}
+
+fn resolve_ik(job: &mut IkJob, dir: &Path) {
+    let at = |p: &Path| lexically_normal(&dir.join(p));
+    job.rig = job.rig.as_deref().map(at);
+    job.svg = job.svg.as_deref().map(at);
+    job.points = job.points.as_deref().map(at);
+    job.output = at(&job.output);
+    job.report = job.report.as_deref().map(at);
+    // A font file (not a built-in font name) is relative to the scene too.
+    if let Some(f) = &mut job.font {
+        if f.contains('/') || f.contains('.') {
+            *f = at(Path::new(f.as_str())).display().to_string();
+        }
+    }
+}
+
+/// `a/b/../c` → `a/c`, without touching the file system (the output may not exist yet).
+fn lexically_normal(path: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir
+                if matches!(out.components().next_back(), Some(Component::Normal(_))) =>
+            {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    if out.as_os_str().is_empty() {
+        out.push(".");
+    }
+    out
+}
+
+/// The known word closest to `word` (edit distance at most 2, or a third of its length), if
+/// any: the likely intended spelling of a typo.
+pub fn did_you_mean<'a>(word: &str, known: impl Iterator<Item = &'a str>) -> Option<&'a str> {
+    let limit = (word.chars().count() / 3).max(2);
+    known
+        .map(|k| (edit_distance(word, k), k))
+        .filter(|&(d, _)| d <= limit)
+        .min_by_key(|&(d, _)| d)
+        .map(|(_, k)| k)
+}
+
+/// Levenshtein distance between two strings, in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != cb)).min(row[j] + 1).min(cur + 1);
+            prev = cur;
+        }
+    }
+    row[b.len()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::param::Param;
+
+    #[test]
+    fn every_config_field_is_a_param_and_back() {
+        let mut fields: Vec<&str> = fields_of::<ClothJob>().to_vec();
+        fields.extend(fields_of::<IkJob>());
+        assert!(fields.len() > 60, "{fields:?}");
+        for f in &fields {
+            assert!(
+                Param::ALL.iter().any(|p| p.key() == *f),
+                "config field `{f}` has no Param"
+            );
+        }
+        for p in Param::ALL {
+            assert!(fields.contains(&p.key()), "{p:?} is no config field");
+        }
+    }
+
+    #[test]
+    fn scenes_deserialise_into_configs_with_paths_beside_the_scene() {
+        let text = r#"
+            [[cloth]]
+            name = "a"
+            input = "../meshes/plane.obj"
+            output = "out/a.glb"
+            frames = 3
+            stiffness = 200
+            gravity = [0, -1, 0]
+            pin = "box:-1,-1,-1,1,1,1"
+            collider = ["mesh:table.obj", "plane:0,1,0,0"]
+            [[ik]]
+            preset = "lab-arm"
+            curve = "circle"
+            output = "ik.glb"
+        "#;
+        let scene = Scene::parse(text, Path::new("scenes/x.toml")).unwrap();
+        assert_eq!(scene.jobs.len(), 2);
+        let Job::Cloth(c) = &scene.jobs[0].job else {
+            panic!()
+        };
+        assert_eq!(c.input.as_deref(), Some(Path::new("meshes/plane.obj")));
+        assert_eq!(c.output, Path::new("scenes/out/a.glb"));
+        assert_eq!(c.stiffness, Some(200.0));
+        assert_eq!(c.gravity, Some(glam::DVec3::new(0.0, -1.0, 0.0)));
+        assert_eq!(c.pin.len(), 1);
+        assert_eq!(
+            c.collider[0],
+            ColliderSpec::Mesh(PathBuf::from("scenes/table.obj"))
+        );
+        assert_eq!(scene.jobs[1].name, "ik1");
+    }
+
+    #[test]
+    fn scene_mistakes_name_the_job_and_key() {
+        let e = Scene::parse(
+            "[[cloth]]\nname = \"a\"\nframe = 3\noutput = \"a.glb\"\n",
+            Path::new("s.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("job 1 (`a`)")
+                && e.contains("unknown key `frame`")
+                && e.contains("did you mean `frames`"),
+            "{e}"
+        );
+        let e = Scene::parse(
+            "[[cloth]]\nframes = \"ten\"\noutput = \"a.glb\"\n",
+            Path::new("s.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("line 2") && e.contains("ten"), "{e}");
+        let e = Scene::parse("", Path::new("s.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no jobs"), "{e}");
+        let e = Scene::parse("[[clth]]\n", Path::new("s.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("did you mean [[cloth]]"), "{e}");
+    }
+}
