@@ -1,50 +1,13 @@
 //! The command line as a user meets it: every bad input gets a clear error naming the file (or
 //! option, or scene job) and exits with a failure code, never a panic.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
 use std::process::Command;
 
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
-        .join(name)
-}
-
-fn mesh(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("meshes")
-        .join(name)
-}
-
-/// Runs scenebake; returns (exit code, stderr).
-fn scenebake<I, S>(args: I) -> (i32, String)
-where
-    I: IntoIterator<Item = S>,
-    S: AsRef<std::ffi::OsStr>,
-{
-    let out = Command::new(env!("CARGO_BIN_EXE_scenebake"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-/// Asserts a failure whose message has every one of `words` and no panic.
-#[track_caller]
-fn fails_with(args: &[&str], words: &[&str]) {
-    let (code, err) = scenebake(args);
-    assert_ne!(code, 0, "{args:?} should fail");
-    assert!(
-        !err.contains("panicked") && !err.contains("RUST_BACKTRACE"),
-        "{args:?} panicked: {err}"
-    );
-    for w in words {
-        assert!(err.contains(w), "{args:?}: message lacks `{w}`:\n{err}");
-    }
-}
+use common::cli::{fails_with, scenebake};
+use common::{fixture, mesh_path as mesh, names_in};
 
 fn out_path(dir: &tempfile::TempDir) -> String {
     dir.path().join("out.glb").to_string_lossy().into_owned()
@@ -616,41 +579,132 @@ fn bad_ik_options_name_the_option_or_joint() {
     }
 }
 
-/// Ctrl-C during a bake: exit status 130, the earlier export intact, no temporary left.
+/// Ctrl-C while the output is being written: the bake is stopped (SIGSTOP) as soon as its
+/// temporary appears beside the earlier export, interrupted, and let go. Exit status 130, the
+/// earlier export intact, the temporary gone. The bake is cheap to simulate (one local/global
+/// iteration per step) but its output is large (about 140 MB without sparse accessors), so the
+/// temporary is written for long enough to be caught.
 #[cfg(unix)]
 #[test]
 fn an_interrupted_bake_loses_nothing() {
+    use common::cli::signal;
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("keep.glb");
     std::fs::write(&out, b"earlier export").unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+    let mut child = common::cli::bin()
         .args([
             "-q",
             "cloth",
             "--preset",
             "lab-cloth",
             "--resolution",
-            "150",
-            // Long enough to be interrupted, under the output-size limit (7,850 frames here).
+            "120",
             "--frames",
-            "5000",
+            "400",
+            "--solver",
+            "fast",
+            "--iterations",
+            "1",
+            "--sparse",
+            "off",
             "-o",
             out.to_str().unwrap(),
         ])
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    let killed = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(130), "the handler exits with 130");
+    let is_temporary = |n: &str| n.starts_with(".keep.glb.") && n.ends_with(".tmp");
+    let temporary = loop {
+        if let Some(n) = names_in(dir.path()).into_iter().find(|n| is_temporary(n)) {
+            break dir.path().join(n);
+        }
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("the bake ended ({status}) before a temporary was seen");
+        }
+        std::thread::sleep(std::time::Duration::from_micros(500));
+    };
+    signal(child.id(), "STOP");
+    // Stopped mid-write: the temporary is there and the earlier export not yet replaced.
+    assert!(
+        temporary.exists(),
+        "the temporary was renamed before the bake could be stopped"
+    );
     assert_eq!(std::fs::read(&out).unwrap(), b"earlier export");
-    let names: Vec<String> = std::fs::read_dir(dir.path())
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    assert_eq!(names, vec!["keep.glb".to_string()]);
+    signal(child.id(), "INT");
+    signal(child.id(), "CONT");
+    let done = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&done.stderr);
+    assert_eq!(
+        done.status.code(),
+        Some(130),
+        "the handler exits with 130: {err}"
+    );
+    assert!(err.contains("nothing was written"), "{err}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"earlier export");
+    assert_eq!(
+        names_in(dir.path()),
+        ["keep.glb"],
+        "the temporary is removed"
+    );
+}
+
+/// A write failing midway, without any hook in the program: the file-size limit (RLIMIT_FSIZE,
+/// `ulimit -f`, with SIGXFSZ ignored so that write(2) returns EFBIG) stops the output after 64
+/// KiB of about 1 MB. The error names the file, the earlier `.gltf` and `.bin` are untouched and
+/// no temporary is left.
+#[cfg(unix)]
+#[test]
+fn a_write_failing_midway_keeps_the_earlier_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("keep.gltf");
+    std::fs::write(&out, b"earlier export").unwrap();
+    std::fs::write(dir.path().join("keep.bin"), b"earlier buffer").unwrap();
+    let run = |limit_kib: u32| {
+        // POSIX sh counts `ulimit -f` in 512-byte blocks.
+        let script = format!(
+            "trap '' XFSZ; ulimit -f {}; exec \"$0\" \"$@\"",
+            limit_kib * 2
+        );
+        Command::new("sh")
+            .args(["-c", &script, env!("CARGO_BIN_EXE_scenebake")])
+            .args(["-q", "cloth", "--preset", "lab-cloth", "--resolution", "30"])
+            .args([
+                "--frames",
+                "40",
+                "--sparse",
+                "off",
+                "-o",
+                out.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap()
+    };
+    let failed = run(64);
+    let err = String::from_utf8_lossy(&failed.stderr);
+    assert_eq!(failed.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("keep.") && err.contains("File too large"),
+        "the error names the file and the cause: {err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"earlier export");
+    assert_eq!(
+        std::fs::read(dir.path().join("keep.bin")).unwrap(),
+        b"earlier buffer"
+    );
+    assert_eq!(names_in(dir.path()), ["keep.bin", "keep.gltf"]);
+    // The same bake under a limit it fits in replaces both files: the failure was the limit.
+    let done = run(64 * 1024);
+    assert!(
+        done.status.success(),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    assert!(
+        std::fs::metadata(dir.path().join("keep.bin"))
+            .unwrap()
+            .len()
+            > 64 * 1024
+    );
+    common::load(&out);
 }

@@ -1,11 +1,13 @@
 //! The traps a new user hit in a trial run (issue 13), each closed with the exact message the
 //! command line now prints.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn crate_path(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+    common::crate_dir().join(rel)
 }
 
 fn s(p: &Path) -> String {
@@ -14,7 +16,7 @@ fn s(p: &Path) -> String {
 
 /// Runs scenebake in `dir`; returns (exit code, stdout, stderr).
 fn run(dir: &Path, args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+    let out = common::cli::bin()
         .args(args)
         .current_dir(dir)
         .output()
@@ -403,18 +405,14 @@ fn an_interrupted_run_names_the_outputs_it_already_replaced() {
         "[[cloth]]\nname = \"quick\"\npreset = \"lab-cloth\"\nframes = 2\noutput = \"quick.glb\"\n\n[[cloth]]\nname = \"long\"\npreset = \"lab-cloth\"\nresolution = 150\nframes = 5000\noutput = \"long.glb\"\n",
     )
     .unwrap();
-    let child = Command::new(env!("CARGO_BIN_EXE_scenebake"))
+    let child = common::cli::bin()
         .args(["-q", "run", "two.toml"])
         .current_dir(dir.path())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
     std::thread::sleep(std::time::Duration::from_millis(1500));
-    assert!(Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap()
-        .success());
+    common::cli::signal(child.id(), "INT");
     let out = child.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(130));
     assert_eq!(

@@ -1,11 +1,9 @@
 //! The VAT and compact-cache options through the binary: command line and scene-file keys share
 //! one vocabulary (`vat`, `vat_mode`, `vat_max_width`, `keyframe_tolerance`, `sparse`).
 
-use std::process::Command;
+mod common;
 
-fn scenebake() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_scenebake"))
-}
+use common::cli::bin as scenebake;
 
 #[test]
 fn scene_file_keys_reach_the_vat_and_compact_writers() {

@@ -3,11 +3,11 @@
 //! normalisation, stride, sparse), the frames played back with the node transform and compared
 //! with a reference simulation run through the library directly.
 
-mod morph_reader;
+mod common;
 
 use std::path::Path;
 
-use morph_reader::{reference, reference_positions};
+use common::morph::{reference, reference_positions};
 use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothSource};
 use scenebake::export::{BasisSize, QuantizeMode};
 use scenebake::glam::{Mat4, Vec3};
@@ -373,7 +373,7 @@ fn a_cache_that_never_moves_gets_one_zero_target() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("still.glb");
     let mut job = ClothJob::new(
-        ClothSource::File(morph_reader::mesh_path("plane_30x30.obj")),
+        ClothSource::File(common::mesh_path("plane_30x30.obj")),
         out.clone(),
     );
     job.frames = Some(5);

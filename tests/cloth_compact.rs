@@ -1,11 +1,12 @@
 //! Compact caches: keyframe reduction (`--keyframe-tolerance`) and sparse morph targets
 //! (`--sparse`), checked with an independent reader (the `gltf` crate) and our own weight sampler.
 
-mod morph_reader;
+mod common;
 
 use std::path::Path;
 
-use morph_reader::{load_morph, max_distance, mesh_path, reference, reference_positions};
+use common::mesh_path;
+use common::morph::{load_morph, max_distance, reference, reference_positions};
 use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothSource};
 use scenebake::cloth::FrameCache;
 use scenebake::export::{write_morph_gltf, Interpolation, MorphOptions, SparseMode};

@@ -1,8 +1,13 @@
 //! Colliders, friction and wind, checked against closed forms and physical bounds, with both
-//! solvers.
+//! solvers. Penetration is measured with distances computed here from each collider's
+//! parameters (`common::geometry`), never with the library's own contact query.
+
+mod common;
 
 use std::path::PathBuf;
 
+use common::geometry::{box_distance, plane_distance, sphere_distance, Triangles};
+use common::mesh_path;
 use glam::{DVec3, Vec3};
 use scenebake::bake::cloth::{simulate_cloth, ClothJob, ClothSource, SimulatedCloth};
 use scenebake::cloth::collide::{Ball, Collider, ColliderSpec, Colliders, Cuboid, HalfSpace};
@@ -13,12 +18,6 @@ use scenebake::cloth::{
 use scenebake::mesh::Mesh;
 
 const SOLVERS: [SolverKind; 2] = [SolverKind::Fast, SolverKind::Newton];
-
-fn mesh_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("meshes")
-        .join(name)
-}
 
 /// Bakes `job` with the library (no export) and returns the cache and the parameters used.
 fn bake(job: &ClothJob) -> (FrameCache, BakeParams, ClothModel) {
@@ -43,16 +42,12 @@ fn job(input: &str, solver: SolverKind, frames: usize) -> ClothJob {
     job
 }
 
-/// The smallest signed distance of any particle from `shape` over every frame of `cache`.
-fn closest_approach(cache: &FrameCache, shape: &Collider) -> f64 {
+/// The smallest signed distance (`distance`, positive outside the solid) of any particle over
+/// every frame of `cache`.
+fn closest_approach(cache: &FrameCache, distance: impl Fn(DVec3) -> f64) -> f64 {
     (0..cache.frame_count())
         .flat_map(|k| cache.frame(k).iter())
-        .map(|p| {
-            let p = p.as_dvec3();
-            shape
-                .contact(p, p, f64::INFINITY)
-                .map_or(f64::INFINITY, |s| s.distance)
-        })
+        .map(|p| distance(p.as_dvec3()))
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -147,19 +142,16 @@ fn dropped_sheet_rests_on_a_tilted_ground_without_drifting() {
         job.damping = Some(1.0);
         job.stiffness = Some(200.0);
         let (cache, params, _) = bake(&job);
-        let ground = &params.colliders.shapes[0];
+        let above_ground = |p| plane_distance(normal, offset, p);
         let thickness = params.colliders.thickness;
-        let approach = closest_approach(&cache, ground);
+        let approach = closest_approach(&cache, above_ground);
         assert!(
             approach > 0.0,
             "{solver_kind:?}: a particle went {approach} m from the ground (inside)"
         );
         // Landed: the centroid lies at the thickness above the ground.
         let end = cache.frame(150);
-        let lift = ground
-            .contact(centroid(end), DVec3::ZERO, f64::INFINITY)
-            .unwrap()
-            .distance;
+        let lift = above_ground(centroid(end));
         assert!(
             (lift - thickness).abs() < 0.1 * thickness,
             "{solver_kind:?}: centroid {lift} m above the ground, thickness {thickness}"
@@ -190,7 +182,7 @@ fn sheet_over_a_sphere_never_penetrates() {
         let mut job = job("plane_30x30.obj", solver_kind, 60);
         job.collider = vec![ColliderSpec::Sphere(ball.centre, ball.radius)];
         let (cache, params, _) = bake(&job);
-        let approach = closest_approach(&cache, &params.colliders.shapes[0]);
+        let approach = closest_approach(&cache, |p| sphere_distance(ball.centre, ball.radius, p));
         assert!(
             approach > 0.0,
             "{solver_kind:?}: a particle came {approach} m from the sphere (inside it)"
@@ -244,8 +236,7 @@ fn tablecloth_drapes_over_a_table() {
         };
         job.collider = vec![ColliderSpec::Box(table.min, table.max)];
         let (cache, params, _) = bake(&job);
-        let shape = &params.colliders.shapes[0];
-        let approach = closest_approach(&cache, shape);
+        let approach = closest_approach(&cache, |p| box_distance(table.min, table.max, p));
         assert!(
             approach > 0.0,
             "{input} {solver_kind:?}: entered the table ({approach} m)"
@@ -372,6 +363,9 @@ fn gusts_are_deterministic() {
 /// solvers: no particle ends a frame inside the table, and the middle rests on the top.
 #[test]
 fn sheet_rests_on_the_table_mesh() {
+    // The table as tobj reads it, measured triangle by triangle.
+    let table = Triangles::from_obj(&mesh_path("table.obj"));
+    assert_eq!(table.triangles.len(), 60);
     for solver_kind in SOLVERS {
         let mut job = job("plane_30x30.obj", solver_kind, 20);
         job.scale = 1.6;
@@ -381,8 +375,7 @@ fn sheet_rests_on_the_table_mesh() {
         job.density = Some(0.5);
         job.max_newton = 20;
         let (cache, params, _) = bake(&job);
-        let table = &params.colliders.shapes[0];
-        let approach = closest_approach(&cache, table);
+        let approach = closest_approach(&cache, |p| table.signed_distance(p));
         assert!(
             approach > 0.0,
             "{solver_kind:?}: a particle entered the table ({approach} m)"
@@ -399,4 +392,56 @@ fn sheet_rests_on_the_table_mesh() {
             "{solver_kind:?}: the sheet's middle is {above} m above the table top"
         );
     }
+}
+
+/// The two ways this file measures penetration agree: a box written as an OBJ and measured
+/// triangle by triangle (with the winding number for inside) gives the box formula's distance.
+#[test]
+fn brute_force_mesh_distance_agrees_with_the_box_formula() {
+    let (min, max) = (DVec3::new(-0.3, 0.7, -0.2), DVec3::new(0.5, 1.0, 0.4));
+    let corner = |i: usize| {
+        DVec3::new(
+            if i & 1 == 0 { min.x } else { max.x },
+            if i & 2 == 0 { min.y } else { max.y },
+            if i & 4 == 0 { min.z } else { max.z },
+        )
+    };
+    // Corners 1..8 in OBJ order: (0,0,0) (1,0,0) (1,1,0) (0,1,0), then the same at z = 1.
+    let order = [0, 1, 3, 2, 4, 5, 7, 6];
+    let mut obj: String = order
+        .iter()
+        .map(|&i| {
+            let c = corner(i);
+            format!("v {} {} {}\n", c.x, c.y, c.z)
+        })
+        .collect();
+    // Outward faces (counter-clockwise seen from outside).
+    for f in [
+        "1 4 3", "1 3 2", "5 6 7", "5 7 8", "1 2 6", "1 6 5", "4 8 7", "4 7 3", "1 5 8", "1 8 4",
+        "2 3 7", "2 7 6",
+    ] {
+        obj.push_str(&format!("f {f}\n"));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("box.obj");
+    std::fs::write(&path, obj).unwrap();
+    let mesh = Triangles::from_obj(&path);
+    assert_eq!(mesh.triangles.len(), 12);
+    let mut inside = 0;
+    for i in 0..=12 {
+        for j in 0..=12 {
+            for k in 0..=12 {
+                let t = DVec3::new(i as f64, j as f64, k as f64) / 12.0;
+                let p = min - 0.2 + (max - min + 0.4) * t;
+                let (got, want) = (mesh.signed_distance(p), box_distance(min, max, p));
+                // tobj stores the corners as f32.
+                assert!((got - want).abs() < 1e-6, "{p}: mesh {got}, box {want}");
+                inside += usize::from(want < 0.0);
+            }
+        }
+    }
+    assert!(
+        inside > 50,
+        "the grid probes the inside too ({inside} points)"
+    );
 }

@@ -2,7 +2,7 @@
 //! from the positions, independently of the solvers), the same fabric on different meshes moves
 //! alike, and the default bake agrees with a tightly converged Newton solve on a garment.
 
-mod morph_reader;
+mod common;
 
 use std::path::{Path, PathBuf};
 
@@ -11,10 +11,6 @@ use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::system::JAM_STRAIN;
 use scenebake::cloth::{make_solver, simulate};
 use scenebake::glam::DVec3;
-
-fn crate_path(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
-}
 
 /// ρ = ‖∇g‖ / ‖M·g‖ over the free particles for the step from (x₋₂, x₋₁) to x, evaluated from
 /// the model's springs, bending stencils and masses with this file's own formulas:
@@ -141,7 +137,7 @@ fn the_same_fabric_moves_alike_on_a_coarse_and_a_fine_irregular_mesh() {
 #[test]
 fn the_tolerance_is_honoured_on_a_garment() {
     let mut job = ClothJob::new(
-        ClothSource::File(crate_path("meshes/garments/circle_skirt.obj")),
+        ClothSource::File(common::crate_dir().join("meshes/garments/circle_skirt.obj")),
         PathBuf::from("unused.glb"),
     );
     job.pin = vec!["box:-0.2,0.999,-0.2,0.2,1.001,0.2"

@@ -1,12 +1,13 @@
 //! VAT export (`--vat`): the EXR images, read back with the `exr` crate, hold exactly what the
 //! morph-target glTF (read back with the `gltf` crate) plays at every frame.
 
-mod morph_reader;
+mod common;
 
 use std::path::Path;
 
+use common::mesh_path;
+use common::morph::{load_morph, Morph};
 use exr::prelude::{read_first_rgba_layer_from_file, SampleType};
-use morph_reader::{load_morph, mesh_path, Morph};
 use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothSource};
 use scenebake::export::VatMode;
 use scenebake::glam::Vec3;

@@ -31,6 +31,26 @@ fn joint_positions(l: &common::Loaded, tracks: &common::Tracks, t: f32, n: usize
         .collect()
 }
 
+/// How many keys of the baked file put the tip (`joint_4`, posed by our own FK) within
+/// `tolerance` of that frame's target, plus f32 rounding of the keys: counted here from the
+/// written file, not read from the report.
+fn reached_in_file(path: &std::path::Path, targets: &[[f64; 3]], tolerance: f64) -> usize {
+    let l = load(path);
+    let tracks = l.animation("ik");
+    let (times, _) = tracks.rotation.values().next().unwrap();
+    assert_eq!(times.len(), targets.len(), "one key per target");
+    let tip = l.node_by_name("joint_4");
+    times
+        .iter()
+        .zip(targets)
+        .filter(|(&t, target)| {
+            l.world_pos(&tracks, tip, t)
+                .distance(DVec3::from_array(**target))
+                <= tolerance + 1e-5
+        })
+        .count()
+}
+
 #[track_caller]
 fn assert_bones_kept(p: &[DVec3]) {
     for i in 1..p.len() {
@@ -117,11 +137,13 @@ fn ccd_and_fabrik_both_reach_the_circle_and_fabrik_iterates_less() {
             ..lab_job(dir.path(), solver.as_str())
         };
         let r = bake_ik(&job, &mut |_, _| {}).unwrap();
+        let reached = reached_in_file(&job.output, &r.targets, job.tolerance);
         assert_eq!(
-            r.reached, r.frames,
-            "{solver:?}: {} of {} frames reached, max error {}",
-            r.reached, r.frames, r.max_error
+            reached, r.frames,
+            "{solver:?}: {reached} of {} frames reached in the file, max error {}",
+            r.frames, r.max_error
         );
+        assert_eq!(r.reached, reached, "{solver:?}: the report agrees");
         assert_eq!(r.unreachable, 0);
         let l = load(&job.output);
         let tracks = l.animation("ik");
@@ -163,6 +185,7 @@ fn unreachable_targets_stretch_the_chain_straight_without_twitching() {
         let r = bake_ik(&job, &mut |_, _| {}).unwrap();
         assert_eq!(r.unreachable, r.frames, "{solver:?}");
         assert_eq!(r.reached, 0);
+        assert_eq!(reached_in_file(&job.output, &r.targets, job.tolerance), 0);
         let l = load(&job.output);
         let tracks = l.animation("ik");
         let (times, keys) = tracks.rotation.values().next().unwrap();
@@ -217,7 +240,13 @@ fn text_bake_lifts_the_pen_and_reveals_the_trail() {
         }
     }
     assert_eq!(r.unreachable, 0);
-    assert_eq!(r.reached, r.frames, "max error {}", r.max_error);
+    let reached = reached_in_file(&job.output, &r.targets, job.tolerance);
+    assert_eq!(
+        reached, r.frames,
+        "{reached} of {} frames reached in the file, max error {}",
+        r.frames, r.max_error
+    );
+    assert_eq!(r.reached, reached, "the report agrees");
     // The letters fit the arm's reach and span a sensible width in x.
     let xs: Vec<f64> = r.targets.iter().map(|t| t[0]).collect();
     let width =
@@ -337,10 +366,16 @@ fn every_lab_curve_is_reached_by_both_solvers() {
             };
             let r = bake_ik(&job, &mut |_, _| {}).unwrap();
             assert_eq!(r.unreachable, 0, "{curve:?} {solver:?}");
+            // Reached as the written file plays, counted here.
+            let reached = reached_in_file(&job.output, &r.targets, job.tolerance);
             assert_eq!(
-                r.reached, r.frames,
-                "{curve:?} {solver:?}: max error {}",
-                r.max_error
+                reached, r.frames,
+                "{curve:?} {solver:?}: {reached} of {} frames reached in the file, max error {}",
+                r.frames, r.max_error
+            );
+            assert_eq!(
+                r.reached, reached,
+                "{curve:?} {solver:?}: the report agrees"
             );
             // Every target lies in the lab's y = 0 plane.
             assert!(r.targets.iter().all(|t| t[1].abs() < 1e-12), "{curve:?}");

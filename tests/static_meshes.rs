@@ -1,9 +1,9 @@
 //! Static meshes (the colliders) written beside the cloth: their own nodes after the cloth's,
 //! checked with an independent reader (the `gltf` crate), and the cloth's cache unchanged.
 
-mod morph_reader;
+mod common;
 
-use morph_reader::load_morph;
+use common::morph::load_morph;
 use scenebake::bake::cloth::{ClothJob, ClothSource};
 use scenebake::export::{write_morph_gltf, MorphOptions, StaticMesh};
 use scenebake::glam::{DVec3, Vec3};
@@ -85,7 +85,7 @@ fn plane_sphere_and_cuboid_are_written_beside_the_cloth() {
         dir.path().join("x.glb"),
     );
     job.frames = Some(3);
-    let (mesh, cache) = morph_reader::reference(&job);
+    let (mesh, cache) = common::morph::reference(&job);
 
     let plain = dir.path().join("plain.glb");
     let options = MorphOptions::new("cloth", 24.0);
@@ -189,7 +189,7 @@ fn unusable_static_meshes_are_refused_naming_them() {
         dir.path().join("x.glb"),
     );
     job.frames = Some(1);
-    let (mesh, cache) = morph_reader::reference(&job);
+    let (mesh, cache) = common::morph::reference(&job);
     let out = dir.path().join("bad.glb");
     let mut options = MorphOptions::new("cloth", 24.0);
     options.static_meshes = vec![StaticMesh::from_triangles(

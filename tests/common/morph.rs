@@ -1,26 +1,26 @@
-//! Helpers shared by the export tests: the reference simulation and an independent reload.
+//! The cloth export tests' helpers: the reference simulation (the library's solver run directly,
+//! no writer involved) and an independent reload of morph-target files with the `gltf` crate and
+//! a weight sampler written here.
 
-#![allow(dead_code, reason = "each test file uses a different subset")]
-
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use scenebake::bake::cloth::{prepare_cloth, ClothJob};
 use scenebake::cloth::{make_solver, simulate, FrameCache};
 use scenebake::glam::Vec3;
 use scenebake::mesh::Mesh;
 
-pub fn mesh_path(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("meshes")
-        .join(name)
-}
-
 /// Simulates `job` through the library directly: the reference the exports must match.
 pub fn reference(job: &ClothJob) -> (Mesh, FrameCache) {
+    let (mesh, cache, _) = reference_with_pins(job);
+    (mesh, cache)
+}
+
+/// As [`reference`], with which particles are pinned.
+pub fn reference_with_pins(job: &ClothJob) -> (Mesh, FrameCache, Vec<bool>) {
     let p = prepare_cloth(job).unwrap();
     let mut solver = make_solver(&p.model, &p.params).unwrap();
     let sim = simulate(&p.model, solver.as_mut(), &p.params, &mut |_| {}).unwrap();
-    (p.model.mesh.clone(), sim.cache)
+    (p.model.mesh.clone(), sim.cache, p.model.pinned.clone())
 }
 
 /// Render-vertex positions of frame `k` of the reference.
