@@ -218,6 +218,36 @@ impl Scene {
     }
 }
 
+/// "[[cloth]] job 2 (`name`)" for the job whose table holds byte `offset` of the scene's text.
+fn job_at(text: &str, table: &toml::Table, offset: usize) -> Option<String> {
+    let mut current: Option<(String, usize)> = None;
+    let mut counts = std::collections::BTreeMap::<String, usize>::new();
+    let mut at = 0;
+    for line in text.split_inclusive('\n') {
+        if at > offset {
+            break;
+        }
+        let header = line.trim();
+        if let Some(kind) = header.strip_prefix("[[").and_then(|h| h.strip_suffix("]]")) {
+            let n = counts.entry(kind.trim().to_owned()).or_insert(0);
+            *n += 1;
+            current = Some((kind.trim().to_owned(), *n));
+        } else if header.starts_with('[') {
+            current = None;
+        }
+        at += line.len();
+    }
+    let (kind, n) = current?;
+    let name = table
+        .get(&kind)
+        .and_then(|v| v.as_array())
+        .and_then(|a| a.get(n - 1))
+        .and_then(|t| t.get("name"))
+        .and_then(|v| v.as_str())
+        .map_or_else(|| format!("{kind}{n}"), str::to_owned);
+    Some(format!("[[{kind}]] job {n} (`{name}`)"))
+}
+
 /// Unknown tables and keys, with the likely intended spelling.
 fn check_keys(table: &toml::Table) -> std::result::Result<(), (Option<String>, String)> {
     for (kind, value) in table {
@@ -257,7 +287,11 @@ fn check_keys(table: &toml::Table) -> std::result::Result<(), (Option<String>, S
                     let hint = did_you_mean(key, fields.iter().copied())
                         .map(|k| format!("did you mean `{k}`? "))
                         .unwrap_or_default();
-                    let mut known = fields.to_vec();
+                    let mut known: Vec<&str> = fields
+                        .iter()
+                        .copied()
+                        .filter(|f| !f.contains('-'))
+                        .collect();
                     known.sort_unstable();
                     return Err((
                         Some(format!("[[{kind}]] job {} (`{name}`)", i + 1)),
@@ -386,6 +420,8 @@ mod tests {
         let mut fields: Vec<&str> = fields_of::<ClothJob>().to_vec();
         fields.extend(fields_of::<IkJob>());
         assert!(fields.len() > 60, "{fields:?}");
+        // serde lists the dashed aliases too (`max-iterations`).
+        fields.retain(|f| !f.contains('-'));
         for f in &fields {
             assert!(
                 Param::ALL.iter().any(|p| p.key() == *f),
@@ -451,7 +487,10 @@ mod tests {
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("line 2") && e.contains("ten"), "{e}");
+        assert!(
+            e.contains("job 1 (`cloth1`)") && e.contains("line 2") && e.contains("ten"),
+            "{e}"
+        );
         let e = Scene::parse("", Path::new("s.toml"))
             .unwrap_err()
             .to_string();

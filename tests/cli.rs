@@ -263,11 +263,11 @@ fn scene_file_errors_name_the_file_the_job_and_the_key() {
         ),
         (
             "scene_wrong_type.toml",
-            &["scene_wrong_type.toml", "job 1", "ten", "--frames"],
+            &["scene_wrong_type.toml", "job 1", "ten", "frames", "line 4"],
         ),
         (
             "scene_missing_output.toml",
-            &["scene_missing_output.toml", "job 1", "--output"],
+            &["scene_missing_output.toml", "job 1", "`output` is required"],
         ),
         ("scene_bad_toml.toml", &["scene_bad_toml.toml", "line 6"]),
         (

@@ -168,7 +168,7 @@ fn warnings_and_each_file_size_are_printed() {
     );
     assert!(
         lines[1].starts_with(
-            "warning: lab-cloth (resolution 10): 3 of 3 frames ended above the tolerance \
+            "warning: lab_cloth: 3 of 3 frames ended above the tolerance \
              0.000000000000001 (worst "
         ) && lines[1]
             .ends_with("); raise --max-iterations or --substeps, or see unconverged_frames"),
@@ -208,7 +208,7 @@ fn inspect_reports_weight_sums_and_a_node_cycle() {
     let (code, out, err) = run(dir.path(), &["inspect", "halved.gltf"]);
     assert_eq!(code, 1, "{out}");
     assert!(
-        out.contains("    FAILED: meshes[0].primitives[0] skin weights sum to 1 (40 of 160 vertices sum to 0.500–0.500; `scenebake ik --rig` renormalises them)\n"),
+        out.contains("    FAILED: meshes[0].primitives[0] skin weights sum to 1 (40 of 160 vertices sum to 0.500–0.500; an IK bake with this file as its rig renormalises them)\n"),
         "{out}"
     );
     assert!(

@@ -328,15 +328,15 @@ fn max_targets_too_small_is_an_error_naming_the_option() {
     job.basis = Some(BasisSize::Auto);
     job.basis_tolerance = Some(1e-5);
     job.max_targets = Some(2);
-    let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
-    assert!(e.contains("--max-targets"), "{e}");
+    let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err();
+    assert_eq!(e.param(), Some(scenebake::Param::MaxTargets), "{e}");
     assert!(!out.exists(), "nothing written");
 
     // Without --basis, a cache with more targets than allowed is refused too.
     let mut plain = lab_job(&out, 20);
     plain.max_targets = Some(10);
     let e = bake_cloth(&plain, &mut |_, _| {}).unwrap_err().to_string();
-    assert!(e.contains("--max-targets"), "{e}");
+    assert!(e.contains("`max_targets`"), "{e}");
 
     // Within the cap, it is respected.
     job.basis_tolerance = Some(1e-3);
@@ -364,8 +364,17 @@ fn fixed_basis_writes_k_targets_and_more_targets_are_closer() {
     assert!(errors[0] > errors[1] && errors[1] > errors[2], "{errors:?}");
     let mut job = lab_job(&dir.path().join("x.glb"), 10);
     job.basis = Some(BasisSize::Fixed(11));
-    let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
-    assert!(e.contains("--basis"), "{e}");
+    let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            scenebake::Error::Param {
+                param: scenebake::Param::Basis,
+                ..
+            }
+        ),
+        "{e}"
+    );
 }
 
 #[test]

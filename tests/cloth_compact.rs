@@ -294,8 +294,17 @@ fn negative_tolerance_is_rejected_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let mut job = lab_job(&dir.path().join("x.glb"), 2);
     job.keyframe_tolerance = Some(-1.0);
-    let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
-    assert!(e.contains("--keyframe-tolerance"), "{e}");
+    let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            scenebake::Error::Param {
+                param: scenebake::Param::KeyframeTolerance,
+                ..
+            }
+        ),
+        "{e}"
+    );
     job.keyframe_tolerance = Some(f64::NAN);
     assert!(bake_cloth(&job, &mut |_, _| {})
         .unwrap_err()

@@ -256,11 +256,11 @@ fn bad_vat_options_name_the_option() {
     let mut job = lab_job(dir.path(), 2);
     job.vat = Some(dir.path().join("lab.png"));
     let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
-    assert!(e.contains("--vat") && e.contains(".exr"), "{e}");
+    assert!(e.contains("`vat`") && e.contains(".exr"), "{e}");
     let mut job = lab_job(dir.path(), 2);
     job.vat_max_width = 0;
     let e = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
-    assert!(e.contains("--vat-max-width"), "{e}");
+    assert!(e.contains("`vat_max_width`"), "{e}");
     assert_eq!(
         std::fs::read_dir(dir.path()).unwrap().count(),
         0,

@@ -153,5 +153,5 @@ fn a_zero_normal_is_refused() {
     )
     .unwrap_err()
     .to_string();
-    assert!(e.contains("--normal"), "{e}");
+    assert!(e.contains("`normal`"), "{e}");
 }

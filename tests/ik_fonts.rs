@@ -147,7 +147,7 @@ fn a_glyph_the_font_lacks_is_an_error_naming_it_and_the_font() {
     let e = bake_ik(&job("hi", "comic"), &mut |_, _| {})
         .unwrap_err()
         .to_string();
-    assert!(e.contains("--font") && e.contains("comic"), "{e}");
+    assert!(e.contains("`font`") && e.contains("comic"), "{e}");
     let e = bake_ik(&job("hi", "/nonexistent/font.ttf"), &mut |_, _| {})
         .unwrap_err()
         .to_string();

@@ -168,7 +168,7 @@ fn bad_limits_are_errors_naming_the_option() {
     };
     let e = bake_ik(&job, &mut |_, _| {}).unwrap_err().to_string();
     assert!(
-        e.contains("--limit") && e.contains("elbow") && e.contains("joint_1"),
+        e.contains("`limit`") && e.contains("elbow") && e.contains("joint_1"),
         "{e}"
     );
     assert!(!job.output.exists());

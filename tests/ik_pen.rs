@@ -105,15 +105,15 @@ fn pen_speed_options_are_checked() {
         spacing: Some(0.01),
         ..base.clone()
     });
-    assert!(e.contains("--pen-speed") && e.contains("--spacing"), "{e}");
+    assert!(e.contains("`pen_speed`") && e.contains("`spacing`"), "{e}");
     let e = err(IkJob {
         ease: Some(0.1),
         ..base.clone()
     });
-    assert!(e.contains("--ease"), "{e}");
+    assert!(e.contains("`ease`"), "{e}");
     let e = err(IkJob {
         pen_speed: Some(-1.0),
         ..base.clone()
     });
-    assert!(e.contains("--pen-speed"), "{e}");
+    assert!(e.contains("`pen_speed`"), "{e}");
 }

@@ -264,7 +264,7 @@ fn bad_chains_are_clear_errors() {
         &mut |_, _| {},
     )
     .unwrap_err();
-    assert!(e.to_string().contains("--chain"), "{e}");
+    assert!(e.to_string().contains("`chain`"), "{e}");
     assert!(!dir.path().join("x.glb").exists());
 }
 

@@ -5,7 +5,12 @@
 //! [`simulate`] (which adds the [`wind`] before each step) records a [`FrameCache`].
 
 pub mod collide;
+// The sparse factorisations are internal; benches/cloth.rs measures them with the `internals`
+// feature.
+#[cfg(feature = "internals")]
 pub mod factor;
+#[cfg(not(feature = "internals"))]
+pub(crate) mod factor;
 pub mod fast;
 pub mod material;
 pub mod model;
