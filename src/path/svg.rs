@@ -307,6 +307,35 @@ mod tests {
     }
 
     #[test]
+    fn transforms_nest_and_end_with_their_group() {
+        let svg = r#"<?xml version="1.0"?>
+<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100" stroke="black">
+  <defs><path d="M 0 0 L 100 100"/></defs>
+  <g transform="translate(10, 20)">
+    <g transform="scale(2)">
+      <line x1="0" y1="0" x2="1" y2="0"/>
+    </g>
+    <path transform="rotate(90)" d="M 1 0 L 2 0"/>
+  </g>
+  <line x1="5" y1="5" x2="6" y2="5" transform="matrix(1 0 0 1 -5 -5)"/>
+</svg>"#;
+        let shapes = parse(svg).unwrap();
+        assert_eq!(shapes.len(), 3, "the <defs> path is not drawn");
+        let at = |k: usize, a: (f64, f64), b: (f64, f64)| {
+            let (p, q) = (shapes[k].0[0], shapes[k].0[1]);
+            assert!(
+                p.distance(a.into()) < 1e-6 && q.distance(b.into()) < 1e-6,
+                "{p} {q}"
+            );
+        };
+        // translate(10,20)·scale(2): (0,0)→(10,20), (1,0)→(12,20).
+        at(0, (10.0, 20.0), (12.0, 20.0));
+        // translate(10,20)·rotate(90): (1,0)→(10,21), (2,0)→(10,22); the scale ended with its </g>.
+        at(1, (10.0, 21.0), (10.0, 22.0));
+        at(2, (0.0, 0.0), (1.0, 0.0));
+    }
+
+    #[test]
     fn malformed_attributes_name_the_element_and_line() {
         for (body, needle) in [
             (
