@@ -113,14 +113,22 @@ proptest! {
         Just("</g>".to_string()),
         Just("<defs>".to_string()),
         Just("</defs>".to_string()),
+        Just("<symbol id=\"s\" viewBox=\"0 0 2 2\">".to_string()),
+        Just("</symbol>".to_string()),
+        Just("<use href=\"#s\" width=\"3mm\" height=\"1in\"/>".to_string()),
+        Just("<rect id=\"r\" class=\"h\" width=\"2\" height=\"1\"/><use href=\"#r\" transform=\"skewX(30)\"/>".to_string()),
         (number(), number()).prop_map(|(a, b)| format!("<path d=\"M {a} {b} L 1 2 C 3 4 5 6 7 8 A 5 5 0 1 0 {b} {a} Z\"/>")),
         "[MLHVCSQTAZmlhvcsqtaz0-9 .,eE+-]{0,24}".prop_map(|d| format!("<path d=\"{d}\"/>")),
         "[a-z(),. 0-9-]{0,20}".prop_map(|t| format!("<line x1=\"0\" x2=\"1\" transform=\"{t}\"/>")),
         (number(), number()).prop_map(|(a, b)| format!("<circle cx=\"{a}\" cy=\"{b}\" r=\"2\"/>")),
         "[ -~]{0,12}",
     ], 0..12)) {
-        // The property is that it answers (shapes or an error) without panicking.
-        let _ = scenebake::path::svg::parse_svg(&parts.concat());
+        // The property is that it answers (shapes or an error) without panicking, with and
+        // without an SVG root around the fragments.
+        let body = parts.concat();
+        let _ = scenebake::path::svg::parse_svg(&body, Path::new("fuzz.svg"));
+        let svg = format!("<svg xmlns=\"http://www.w3.org/2000/svg\" viewBox=\"0 0 9 9\"><style>.h{{display:none}}</style>{body}</svg>");
+        let _ = scenebake::path::svg::parse_svg(&svg, Path::new("fuzz.svg"));
     }
 
     #[test]
