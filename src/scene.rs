@@ -162,8 +162,10 @@ impl Scene {
         let table: toml::Table =
             toml::from_str(text).map_err(|e| fail(None, e.to_string().trim_end().to_owned()))?;
         check_keys(&table).map_err(|(job, m)| fail(job, m))?;
-        let file: SceneFile =
-            toml::from_str(text).map_err(|e| fail(None, e.to_string().trim_end().to_owned()))?;
+        let file: SceneFile = toml::from_str(text).map_err(|e| {
+            let job = e.span().and_then(|span| job_at(text, &table, span.start));
+            fail(job, e.to_string().trim_end().to_owned())
+        })?;
         let dir = path.parent().unwrap_or(Path::new(""));
         let mut jobs = Vec::new();
         for (i, mut job) in file.cloth.into_iter().enumerate() {
@@ -171,13 +173,13 @@ impl Scene {
                 .name
                 .clone()
                 .unwrap_or_else(|| format!("cloth{}", i + 1));
-            resolve_cloth(&mut job, dir);
             if job.output.as_os_str().is_empty() {
                 return Err(fail(
                     Some(format!("[[cloth]] job {} (`{name}`)", i + 1)),
                     "`output` is required".into(),
                 ));
             }
+            resolve_cloth(&mut job, dir);
             jobs.push(SceneJob {
                 name,
                 job: Job::Cloth(Box::new(job)),
@@ -185,13 +187,13 @@ impl Scene {
         }
         for (i, mut job) in file.ik.into_iter().enumerate() {
             let name = job.name.clone().unwrap_or_else(|| format!("ik{}", i + 1));
-            resolve_ik(&mut job, dir);
             if job.output.as_os_str().is_empty() {
                 return Err(fail(
                     Some(format!("[[ik]] job {} (`{name}`)", i + 1)),
                     "`output` is required".into(),
                 ));
             }
+            resolve_ik(&mut job, dir);
             jobs.push(SceneJob {
                 name,
                 job: Job::Ik(Box::new(job)),

@@ -708,3 +708,56 @@ fn a_write_failing_midway_keeps_the_earlier_export() {
     );
     common::load(&out);
 }
+
+/// A scene of independent jobs of both kinds (paths relative to the scene's folder).
+fn parallel_scene(dir: &Path) -> std::path::PathBuf {
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[[cloth]]\nname = \"lab\"\npreset = \"lab-cloth\"\nframes = 30\noutput = \"out/lab.glb\"\n\n\
+             [[cloth]]\nname = \"plane\"\ninput = \"{}\"\nframes = 10\npin = \"box:-1,-1,-1,1,1,-0.49\"\noutput = \"out/plane.glb\"\n\n\
+             [[cloth]]\nname = \"fast\"\npreset = \"lab-cloth\"\nsolver = \"fast\"\nframes = 20\noutput = \"out/fast.gltf\"\n\n\
+             [[ik]]\nname = \"circle\"\npreset = \"lab-arm\"\ncurve = \"circle\"\noutput = \"out/circle.glb\"\n",
+            mesh("plane_30x30.obj").display()
+        ),
+    )
+    .unwrap();
+    scene
+}
+
+#[test]
+fn jobs_in_parallel_write_the_same_bytes_and_shards_split_the_jobs() {
+    let one = tempfile::tempdir().unwrap();
+    let two = tempfile::tempdir().unwrap();
+    for (dir, jobs) in [(one.path(), "1"), (two.path(), "2")] {
+        let scene = parallel_scene(dir);
+        let (code, err) = scenebake(["run", scene.to_str().unwrap(), "--jobs", jobs]);
+        assert_eq!(code, 0, "{err}");
+    }
+    let files = names_in(&one.path().join("out"));
+    assert_eq!(files.len(), 5, "{files:?}"); // four outputs and the .bin of the .gltf
+    assert_eq!(files, names_in(&two.path().join("out")));
+    for f in &files {
+        let a = std::fs::read(one.path().join("out").join(f)).unwrap();
+        let b = std::fs::read(two.path().join("out").join(f)).unwrap();
+        assert!(a == b, "{f} differs between --jobs 1 and --jobs 2");
+    }
+
+    // --shard I/N: jobs I, I+N, ... in file order.
+    let sharded = tempfile::tempdir().unwrap();
+    let scene = parallel_scene(sharded.path());
+    let (code, err) = scenebake(["run", scene.to_str().unwrap(), "--shard", "2/3"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(names_in(&sharded.path().join("out")), vec!["plane.glb"]);
+    let (code, err) = scenebake(["run", scene.to_str().unwrap(), "--shard", "1/3"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(
+        names_in(&sharded.path().join("out")),
+        vec!["circle.glb", "lab.glb", "plane.glb"]
+    );
+    fails_with(
+        &["run", scene.to_str().unwrap(), "--shard", "4/3"],
+        &["--shard", "1 ≤ I ≤ N"],
+    );
+}

@@ -309,5 +309,5 @@ fn negative_tolerance_is_rejected_by_name() {
     assert!(bake_cloth(&job, &mut |_, _| {})
         .unwrap_err()
         .to_string()
-        .contains("--keyframe-tolerance"));
+        .contains("`keyframe_tolerance`"));
 }
