@@ -12,7 +12,7 @@ use std::sync::Mutex;
 use anyhow::{anyhow, bail};
 use clap::Args;
 use indicatif::MultiProgress;
-use scenebake::scene::{Scene, SceneJob};
+use scenebake::scene::{Job, Scene, SceneJob};
 
 use super::{
     print_scene_warnings, progress, run_job, summary_line, write_report, JobError, Outcome,
@@ -40,6 +40,22 @@ pub struct RunArgs {
     /// Write the run's summary (and each job's report) as JSON.
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
+}
+
+/// A rough relative cost of a job, for the order jobs start in: cloth frames × input size ×
+/// (1 + colliders); IK bakes are nearly free.
+fn cost_hint(job: &Job) -> f64 {
+    match job {
+        Job::Cloth(c) => {
+            let size = match &c.input {
+                Some(p) => std::fs::metadata(p).map_or(1e5, |m| m.len() as f64),
+                None => 50.0 * f64::from(c.resolution + 1).powi(2),
+            };
+            let frames = c.frames.unwrap_or(120) as f64 * c.substeps as f64;
+            frames * size * (1 + c.collider.len()) as f64
+        }
+        Job::Ik(_) => 1.0,
+    }
 }
 
 fn parse_shard(s: &str) -> Result<(usize, usize), String> {
@@ -87,6 +103,10 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
     .min(selected.len().max(1));
     let start = std::time::Instant::now();
     let total = selected.len();
+    // Longest expected first, so a long job does not start last on an otherwise idle core; the
+    // table and reports keep the file order.
+    let mut order: Vec<usize> = (0..total).collect();
+    order.sort_by(|&a, &b| cost_hint(&selected[b].job).total_cmp(&cost_hint(&selected[a].job)));
     let multi = MultiProgress::new();
     let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
@@ -95,10 +115,11 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
     std::thread::scope(|threads| {
         for _ in 0..workers {
             threads.spawn(|| loop {
-                let k = next.fetch_add(1, Ordering::SeqCst);
-                if k >= total || failed.load(Ordering::SeqCst) {
+                let slot = next.fetch_add(1, Ordering::SeqCst);
+                if slot >= total || failed.load(Ordering::SeqCst) {
                     break;
                 }
+                let k = order[slot];
                 let job = selected[k];
                 let label = format!("[{}/{total}] {} {}", k + 1, job.job.kind(), job.name);
                 let bar = multi.add(progress::bar(
