@@ -7,7 +7,8 @@ use glam::{DVec2, DVec3};
 use scenebake::bake::ik::IkPreset;
 use scenebake::bake::{bake_ik, IkJob};
 use scenebake::error::Error;
-use scenebake::path::svg::{parse_svg, read_svg, Polyline, TOLERANCE};
+use scenebake::io::drawing::read_svg;
+use scenebake::path::svg::{parse_svg, Polyline, TOLERANCE};
 
 const NS: &str = r#"xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink""#;
 

@@ -19,7 +19,6 @@ use crate::ik::solver::{IkSolver, SolverConfig};
 use crate::ik::{Ccd, Fabrik};
 use crate::io::rig::RigDocument;
 use crate::param::{Param, Text};
-use crate::path::font::Font;
 use crate::path::{self, CurveKind, PenTarget, Plane, Stroke, Timing};
 use crate::spec::de;
 use crate::text;
@@ -503,7 +502,8 @@ fn build_strokes(
     }
     let max_height = 2.0 * default_radius(false);
     if let Some(text) = &job.text {
-        let font = Font::load(job.font.as_deref().unwrap_or(path::font::DEFAULT))?;
+        let font =
+            crate::io::drawing::load_font(job.font.as_deref().unwrap_or(path::font::DEFAULT))?;
         let laid = path::font::layout(&font, text)?;
         let scale = match job.size {
             Some(h) => h / font.cap_height(),
@@ -519,7 +519,7 @@ fn build_strokes(
             .collect());
     }
     if let Some(svg) = &job.svg {
-        let shapes = path::svg::read_svg(svg)?;
+        let shapes = crate::io::drawing::read_svg(svg)?;
         let (mut lo, mut hi) = (DVec2::splat(f64::MAX), DVec2::splat(f64::MIN));
         for p in shapes.iter().flat_map(|(s, _)| s) {
             lo = lo.min(*p);
@@ -544,7 +544,7 @@ fn build_strokes(
             .collect());
     }
     let file = job.points.as_ref().expect("one source");
-    let pts = path::points::read_points(file)?;
+    let pts = crate::io::drawing::read_points(file)?;
     Ok(pts
         .strokes
         .iter()

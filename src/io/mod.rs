@@ -1,5 +1,6 @@
 //! Readers for input files.
 
+pub mod drawing;
 pub mod gltf_import;
 pub mod gltf_mesh;
 pub mod obj;

@@ -104,29 +104,38 @@ enum Kind {
     },
 }
 
+/// What a font name refers to: a built-in font, or a font file still to be read.
+#[derive(Debug)]
+pub enum FontSource {
+    /// A built-in font, ready.
+    Builtin(Font),
+    /// A TrueType/OpenType file.
+    File(std::path::PathBuf),
+}
+
 impl Font {
-    /// Loads `--font SPEC`: a built-in name ([`GRID`] or a [`HERSHEY_FONTS`] name) or a path to
+    /// Resolves a font name: a built-in name ([`GRID`] or a [`HERSHEY_FONTS`] name) or a path to
     /// a `.ttf`/`.otf`/`.ttc` file (its first face).
     ///
     /// # Errors
     /// [`Error::InvalidOption`] (`--font`) for a name that is neither built in nor an existing
     /// file; [`Error::Io`] for an unreadable file; [`Error::InvalidInput`] naming the file when
     /// it is not a font with outlines.
-    pub fn load(spec: &str) -> Result<Font> {
+    pub fn load(spec: &str) -> Result<FontSource> {
         let key = spec.trim();
         if key.eq_ignore_ascii_case(GRID) {
-            return Ok(Font {
+            return Ok(FontSource::Builtin(Font {
                 name: GRID.into(),
                 kind: Kind::Grid,
                 cap_height: super::text::CAP_HEIGHT,
                 line_height: super::text::LINE_HEIGHT,
-            });
+            }));
         }
         if let Some((name, file, _)) = HERSHEY_FONTS
             .iter()
             .find(|(n, _, _)| n.eq_ignore_ascii_case(key))
         {
-            return Font::hershey(name, hershey_data(file));
+            return Font::hershey(name, hershey_data(file)).map(FontSource::Builtin);
         }
         let path = Path::new(key);
         let looks_like_file = path.extension().is_some_and(|e| {
@@ -146,7 +155,29 @@ impl Font {
                 ),
             ));
         }
-        let data = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        Ok(FontSource::File(path.to_path_buf()))
+    }
+
+    /// A built-in font by name ([`GRID`] or a [`HERSHEY_FONTS`] name).
+    ///
+    /// # Errors
+    /// As [`Font::load`], and [`Error::Param`] (`font`) when the name is a file.
+    pub fn builtin(name: &str) -> Result<Font> {
+        match Font::load(name)? {
+            FontSource::Builtin(font) => Ok(font),
+            FontSource::File(path) => Err(Error::param_value(
+                Param::Font,
+                format!("`{}` is a font file, not a built-in font", path.display()),
+            )),
+        }
+    }
+
+    /// A TrueType/OpenType font from the bytes of its file (`path` names it in errors;
+    /// [`crate::io::drawing::load_font`] reads it).
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] naming the file when it is not a font with outlines.
+    pub fn from_file_data(path: &Path, data: Vec<u8>) -> Result<Font> {
         Font::outline(path, data)
     }
 
@@ -511,7 +542,7 @@ mod tests {
     #[test]
     fn every_hershey_font_parses_95_glyphs_with_a_cap_height() {
         for (name, _, _) in HERSHEY_FONTS {
-            let f = Font::load(name).unwrap();
+            let f = Font::builtin(name).unwrap();
             assert!(f.cap_height() > 15.0 && f.cap_height() < 30.0, "{name}");
             if let Kind::Hershey { glyphs, .. } = &f.kind {
                 assert_eq!(glyphs.len(), 96, "{name}: ASCII 32..=127");
@@ -534,8 +565,8 @@ mod tests {
 
     #[test]
     fn greek_letters_map_to_their_keys_and_latin_is_refused() {
-        let g = Font::load("greek").unwrap();
-        let simplex = Font::load("simplex").unwrap();
+        let g = Font::builtin("greek").unwrap();
+        let simplex = Font::builtin("simplex").unwrap();
         assert_eq!(g.glyph('Ω').unwrap(), {
             let Kind::Hershey { glyphs, .. } = &g.kind else {
                 unreachable!()

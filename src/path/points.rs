@@ -19,20 +19,12 @@ pub struct PointStrokes {
     pub world: bool,
 }
 
-/// Reads a point file.
+/// Parses the text of a point file (`path` only names it in errors; [`crate::io::drawing`]
+/// reads the file).
 ///
 /// # Errors
-/// [`Error::Io`] when unreadable; [`Error::Parse`] with the line for a malformed or non-finite
-/// number or mixed 2-D/3-D lines; [`Error::InvalidInput`] for a file without points.
-pub fn read_points(path: &Path) -> Result<PointStrokes> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    parse_points(path, &text)
-}
-
-/// Parses the text of a point file (`path` only names it in errors).
-///
-/// # Errors
-/// As [`read_points`].
+/// [`Error::Parse`] with the line for a malformed or non-finite number or mixed 2-D/3-D lines;
+/// [`Error::InvalidInput`] for a file without points.
 pub fn parse_points(path: &Path, text: &str) -> Result<PointStrokes> {
     let mut strokes: Vec<Vec<DVec3>> = vec![Vec::new()];
     let mut dims: Option<usize> = None;

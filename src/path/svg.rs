@@ -47,15 +47,6 @@ pub const TOLERANCE: f64 = 1e-4;
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
 
-/// Reads an SVG file and flattens its visible shapes ([`parse_svg`]).
-///
-/// # Errors
-/// [`Error::Io`] when unreadable, then as [`parse_svg`].
-pub fn read_svg(path: &Path) -> Result<Vec<Polyline>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    parse_svg(&text, path)
-}
-
 /// Parses SVG text and flattens every visible shape into polylines (see the module docs for the
 /// frame, units and tolerance). `path` names the file in error messages only; nothing is read.
 ///

@@ -101,7 +101,7 @@ pub(crate) fn parse_grid_glyph(spec: &str) -> Vec<Vec<DVec2>> {
 /// # Errors
 /// As [`super::font::layout`].
 pub fn layout(text: &str) -> Result<super::font::TextLayout> {
-    super::font::layout(&super::font::Font::load(super::font::DEFAULT)?, text)
+    super::font::layout(&super::font::Font::builtin(super::font::DEFAULT)?, text)
 }
 
 #[cfg(test)]
@@ -130,7 +130,7 @@ mod tests {
 
     #[test]
     fn grid_layout_centres_and_rejects_unknown() {
-        let grid = Font::load("grid").unwrap();
+        let grid = Font::builtin("grid").unwrap();
         let l = font::layout(&grid, "HELLO").unwrap();
         assert_eq!(l.extent, DVec2::new(24.0, 6.0));
         let xs = l.strokes.iter().flat_map(|(s, _)| s).map(|p| p.x);

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use crate::cloth::collide::{Collider, Colliders, DEFAULT_THICKNESS_FRACTION};
+use crate::cloth::collide::{Collider, Colliders, MeshCollider, DEFAULT_THICKNESS_FRACTION};
 use crate::cloth::material::{fabric_model_terms, DEFAULT_MATERIAL};
 use crate::cloth::model::{masses_from_area, masses_from_volume};
 use crate::cloth::pins::pinned_flags;
@@ -374,7 +374,12 @@ fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
     let shapes = job
         .collider
         .iter()
-        .map(Collider::from_spec)
+        .map(|spec| {
+            Collider::from_spec(spec, &|path| {
+                let mesh = obj::load_obj(path, &obj::ObjOptions::default())?;
+                MeshCollider::from_mesh(path, mesh.positions, mesh.triangles)
+            })
+        })
         .collect::<Result<Vec<_>>>()?;
     let thickness = match job.thickness {
         Some(t) => positive(Param::Thickness, t)?,

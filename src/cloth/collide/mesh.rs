@@ -19,7 +19,6 @@ use glam::DVec3;
 
 use super::SurfacePoint;
 use crate::error::{ColliderMeshProblem, Error, Result};
-use crate::io::obj::{load_obj, ObjOptions};
 
 /// Triangles per BVH leaf at most.
 const LEAF_SIZE: usize = 4;
@@ -34,7 +33,9 @@ const LEAF_SIZE: usize = 4;
 /// use scenebake::glam::DVec3;
 ///
 /// // The demo table: a 1.2 × 0.8 m top whose upper face is at y = 0.75 m, on four legs.
-/// let table = MeshCollider::from_obj("meshes/table.obj".as_ref())?;
+/// let path = std::path::Path::new("meshes/table.obj");
+/// let mesh = scenebake::io::obj::load_obj(path, &Default::default())?;
+/// let table = MeshCollider::from_mesh(path, mesh.positions, mesh.triangles)?;
 /// assert!(table.is_closed());
 /// // A particle 1 cm above the top, coming from higher up, looking 5 cm around it.
 /// let p = DVec3::new(0.1, 0.76, 0.0);
@@ -189,14 +190,12 @@ impl MeshCollider {
         })
     }
 
-    /// Loads an OBJ file (every face, polygons split into fans) as a collider.
+    /// A collider from a mesh loaded from `path` (named in its errors).
     ///
     /// # Errors
-    /// The OBJ reader's errors ([`Error::Io`], [`Error::Parse`] with the line,
-    /// [`Error::InvalidInput`]), and [`Error::ColliderMesh`] naming `path`.
-    pub fn from_obj(path: &Path) -> Result<Self> {
-        let mesh = load_obj(path, &ObjOptions::default())?;
-        MeshCollider::new(mesh.positions, mesh.triangles).map_err(|e| match e {
+    /// [`Error::ColliderMesh`] naming `path`, as [`MeshCollider::new`].
+    pub fn from_mesh(path: &Path, positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Result<Self> {
+        MeshCollider::new(positions, triangles).map_err(|e| match e {
             Error::ColliderMesh { problem, .. } => Error::ColliderMesh {
                 path: Some(path.into()),
                 problem,
@@ -1062,7 +1061,11 @@ mod tests {
     #[test]
     fn from_obj_loads_the_table_and_names_bad_files() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/table.obj");
-        let m = MeshCollider::from_obj(&path).unwrap();
+        let from_obj = |path: &Path| {
+            let mesh = crate::io::obj::load_obj(path, &Default::default())?;
+            MeshCollider::from_mesh(path, mesh.positions, mesh.triangles)
+        };
+        let m = from_obj(&path).unwrap();
         assert!(m.is_closed());
         let (lo, hi) = m.bounds();
         approx::assert_abs_diff_eq!(hi.y, 0.75, epsilon = 1e-9);
@@ -1095,7 +1098,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let bad = dir.path().join("bad.obj");
         std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n").unwrap();
-        let e = MeshCollider::from_obj(&bad).unwrap_err();
+        let e = from_obj(&bad).unwrap_err();
         assert!(e.to_string().contains("bad.obj"), "{e}");
     }
 

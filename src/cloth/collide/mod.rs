@@ -114,11 +114,15 @@ impl PartialEq for Collider {
 }
 
 impl Collider {
-    /// Builds the collider a spec names, reading mesh files (relative to the working directory).
+    /// Builds the collider a spec names; `load_mesh` reads a mesh collider's file (the caller's
+    /// loader: file reading lives in [`crate::io`]).
     ///
     /// # Errors
     /// The mesh loader's errors, naming the file.
-    pub fn from_spec(spec: &ColliderSpec) -> Result<Self> {
+    pub fn from_spec(
+        spec: &ColliderSpec,
+        load_mesh: &dyn Fn(&std::path::Path) -> Result<MeshCollider>,
+    ) -> Result<Self> {
         Ok(match spec {
             ColliderSpec::Plane(n, d) => {
                 Collider::Plane(HalfSpace::new(*n, *d).ok_or_else(|| {
@@ -133,7 +137,7 @@ impl Collider {
                 min: *min,
                 max: *max,
             }),
-            ColliderSpec::Mesh(path) => Collider::Mesh(Arc::new(MeshCollider::from_obj(path)?)),
+            ColliderSpec::Mesh(path) => Collider::Mesh(Arc::new(load_mesh(path)?)),
         })
     }
 
