@@ -128,6 +128,54 @@ fn particle_on_a_slope_obeys_coulomb() {
     }
 }
 
+/// A particle that starts closer to the ground than the thickness (a garment draped by another
+/// tool with a smaller margin) stays where it started under Newton, held by the ground at its
+/// starting distance: it is neither pushed out to the thickness nor let in. One that starts
+/// above the thickness falls and rests at the thickness.
+#[test]
+fn newton_keeps_a_particle_starting_inside_the_thickness_where_it_started() {
+    let thickness = 0.01;
+    for (start, rest) in [(0.25 * thickness, 0.25 * thickness), (0.03, thickness)] {
+        let p0 = DVec3::new(0.1, start, -0.2);
+        let mesh = Mesh::from_triangles("particle".into(), vec![p0], Vec::new());
+        let body = ClothModel::new(mesh, SpringSet::default(), vec![0.01], vec![false]).unwrap();
+        let params = BakeParams {
+            frames: 30,
+            fps: 30.0,
+            substeps: 1,
+            damping: 0.0,
+            gravity: DVec3::new(0.0, -9.81, 0.0),
+            solver: SolverKind::Newton,
+            iterations: 10,
+            tolerance: 1e-10,
+            max_newton: newton::DEFAULT_MAX_ITERATIONS,
+            colliders: Colliders {
+                shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
+                thickness,
+                friction: 0.5,
+            },
+            wind: None,
+        };
+        let mut solver = make_solver(&body, &params).unwrap();
+        let sim = simulate(&body, solver.as_mut(), &params, &mut |_| {}).unwrap();
+        for k in 1..=30 {
+            let p = sim.cache.frame(k)[0].as_dvec3();
+            let lowest = if start < thickness { start } else { rest };
+            assert!(
+                p.y > lowest - 1e-6,
+                "started at {start} m: at frame {k} it is at {} m, below {lowest} m",
+                p.y
+            );
+        }
+        let end = sim.cache.frame(30)[0].as_dvec3();
+        assert!(
+            (end.y - rest).abs() < 1e-6 && (end.x - p0.x).hypot(end.z - p0.z) < 1e-7,
+            "started at {start} m: rests at {end}, expected height {rest} m"
+        );
+        assert!(sim.frames.iter().all(|f| f.converged), "{:?}", sim.frames);
+    }
+}
+
 /// A sheet dropped onto a tilted ground lands, comes to rest without penetrating and, with
 /// μ > tanθ, does not drift down the slope.
 #[test]

@@ -10,11 +10,15 @@
 //!   each correction, particles that entered a collider are moved out along its normal to the
 //!   thickness ([`push_out`]). A fixed point is an equilibrium of the implicit step with contact
 //!   forces obeying Coulomb's law.
-//! - Newton minimises the objective plus a stiff penalty ½κ(t − φ)² for every particle closer
-//!   than the thickness t, and a friction potential built from the normal force and normal of
-//!   the previous step (lagged, as in incremental potential contact): μN·f(|slip|) with f
-//!   quadratic below a slip of ε and linear above, so static friction holds the particle and
-//!   sliding costs μN per metre ([`Penalty`]).
+//! - Newton keeps every particle at least the thickness from every collider as a constraint:
+//!   a projected Newton method holds the particles pushed into a collider along its normal and
+//!   moves the others, projecting whatever enters a collider back out; friction is a potential
+//!   built from the normal force and normal of the previous step (lagged, as in incremental
+//!   potential contact): μN·f(|slip|) with f quadratic below a slip of ε and linear above, so
+//!   static friction holds the particle and sliding costs μN per metre ([`NewtonContact`]).
+//!   A particle that starts closer to a collider than the thickness (a garment draped by another
+//!   tool with a smaller margin) is kept at the distance it starts at until it moves away
+//!   ([`rest_layer`]).
 //!
 //! Positions are metres in the cloth's frame; forces newtons.
 
@@ -115,16 +119,6 @@ pub fn contact_reaction(friction: f64, surface: &SurfacePoint, force: &mut DVec3
     }
 }
 
-/// Penalty stiffness per particle: κ = [`PENALTY_INERTIA`]·s·m/h² + [`PENALTY_SPRINGS`]·Σk
-/// (Σk over the springs the particle belongs to). Resting under its weight a particle sinks into
-/// the thickness layer by g·h²/(s·1000); pressed by its springs, by a tenth of what those springs
-/// would stretch under the same force. Larger factors buy nothing but round-off: Newton's
-/// residual floor grows with κ.
-pub const PENALTY_INERTIA: f64 = 1e3;
-
-/// See [`PENALTY_INERTIA`].
-pub const PENALTY_SPRINGS: f64 = 10.0;
-
 /// Slip speed (m/s) below which Newton's friction acts as a stiff spring: static friction holds a
 /// particle on a slope up to a creep of about this speed × tan(slope)/μ.
 pub const STATIC_SLIP_SPEED: f64 = 1e-4;
@@ -138,64 +132,142 @@ struct LaggedContact {
     force: f64,
 }
 
-/// Newton's contact and friction terms for the free particles of a [`ReducedSystem`].
+/// Newton's contact constraints and friction for the free particles of a [`ReducedSystem`].
+///
+/// Contact is a constraint, not an energy: every particle stays at least its layer (the
+/// thickness, see [`rest_layer`]) from every collider. [`NewtonContact::project`] moves a
+/// particle that went closer back out along the collider's normal; Newton holds the particles
+/// that rest on a collider and are pushed into it along the normal ([`NewtonContact::holds`])
+/// and solves for the others and the tangential motion (a projected Newton method on the
+/// constraint set, the filtered solve of Baraff and Witkin 1998 inside Newton). The normal force
+/// a collider exerts is what is left of the gradient along its normal at the end of the step;
+/// friction is a potential built on the previous step's normal forces and normals (lagged, as in
+/// incremental potential contact): μN·f(|slip|) with f quadratic below a slip of ε and linear
+/// above, so static friction holds the particle and sliding costs μN per metre.
 #[derive(Debug, Clone)]
-pub struct Penalty {
+pub struct NewtonContact {
     colliders: Colliders,
-    /// κ per free particle, N/m.
-    stiffness: Vec<f64>,
     /// Friction slip scale ε, m.
     slip_scale: f64,
     lagged: Vec<LaggedContact>,
     x0: Vec<DVec3>,
+    /// Per particle and collider (`i·shapes + j`): the distance it is kept at, m. The collision
+    /// thickness, except for a particle that started closer to that collider (see
+    /// [`rest_layer`]). Empty until the first step.
+    layer: Vec<f64>,
 }
 
-impl Penalty {
-    /// Penalty stiffnesses for `sys`'s particles.
+impl NewtonContact {
+    /// Contact for `sys`'s particles.
     pub fn new(colliders: Colliders, sys: &ReducedSystem) -> Self {
-        let h = sys.params.time_step;
-        let s = sys.inertia_scale();
-        let mut stiffness: Vec<f64> = sys
-            .mass
-            .iter()
-            .map(|m| PENALTY_INERTIA * s * m / (h * h))
-            .collect();
-        let sp = &sys.springs;
-        for ((&a, &b), &k) in sp.a.iter().zip(&sp.b).zip(&sp.k) {
-            stiffness[a as usize] += PENALTY_SPRINGS * k;
-            stiffness[b as usize] += PENALTY_SPRINGS * k;
-        }
-        for (&a, &k) in sys.anchors.a.iter().zip(&sys.anchors.k) {
-            stiffness[a as usize] += PENALTY_SPRINGS * k;
-        }
-        Penalty {
+        NewtonContact {
             colliders,
-            stiffness,
-            slip_scale: STATIC_SLIP_SPEED * h,
+            slip_scale: STATIC_SLIP_SPEED * sys.params.time_step,
             lagged: Vec::new(),
             x0: vec![DVec3::ZERO; sys.len()],
+            layer: Vec::new(),
         }
     }
 
-    /// Remembers the start of the step (the friction's reference positions).
+    /// The colliders.
+    pub fn colliders(&self) -> &Colliders {
+        &self.colliders
+    }
+
+    /// Remembers the start of the step (the friction's reference positions, and the side each
+    /// particle comes from).
+    ///
+    /// At the first step, a particle that starts closer to a collider than the thickness (a
+    /// garment draped on a body by another tool, with a smaller margin) gets a thinner layer
+    /// there: the distance it starts at ([`rest_layer`]).
     pub fn begin_step(&mut self, x0: &[DVec3]) {
         self.x0.copy_from_slice(x0);
+        if self.layer.is_empty() {
+            let t = self.colliders.thickness;
+            self.layer = x0
+                .iter()
+                .flat_map(|p| {
+                    self.colliders
+                        .shapes
+                        .iter()
+                        .map(move |shape| rest_layer(t, shape.contact(*p, *p, t)))
+                })
+                .collect();
+        }
     }
 
-    /// Calls `f(particle, surface point, penetration t − φ > 0)` for every contact at `x`.
+    /// The layer of particle `i` and collider `j`, m.
     #[inline]
-    fn for_each_contact(&self, x: &[DVec3], mut f: impl FnMut(usize, SurfacePoint, f64)) {
-        let t = self.colliders.thickness;
-        for (i, (p, x0)) in x.iter().zip(&self.x0).enumerate() {
-            for shape in &self.colliders.shapes {
-                let reach = t + p.distance(*x0);
-                if let Some(sp) = shape.contact(*p, *x0, reach) {
-                    if sp.distance < t {
-                        f(i, sp, t - sp.distance);
-                    }
-                }
+    fn layer(&self, i: usize, j: usize) -> f64 {
+        self.layer
+            .get(i * self.colliders.shapes.len() + j)
+            .copied()
+            .unwrap_or(self.colliders.thickness)
+    }
+
+    /// Moves particle `i` at `p` out of every collider it is closer to than its layer, along the
+    /// collider's normal, and returns the surface it then rests on (the first collider it is
+    /// within its layer of, up to a relative round-off allowance), if any.
+    #[inline]
+    pub fn project(&self, i: usize, p: &mut DVec3) -> Option<SurfacePoint> {
+        let x0 = self.x0[i];
+        let mut moved = false;
+        let mut resting = None;
+        for (j, shape) in self.colliders.shapes.iter().enumerate() {
+            let layer = self.layer(i, j);
+            let touch = self.touch(layer);
+            let Some(s) = shape.contact(*p, x0, self.reach(touch, *p, x0)) else {
+                continue;
+            };
+            if s.distance < layer {
+                *p += s.normal * (layer - s.distance);
+                moved = true;
+            } else if s.distance <= touch && resting.is_none() {
+                resting = Some(s);
             }
         }
+        if moved {
+            self.resting(i, *p)
+        } else {
+            resting
+        }
+    }
+
+    /// The surface particle `i` at `p` rests on: the first collider it is within its layer of
+    /// (up to a relative round-off allowance).
+    #[inline]
+    pub fn resting(&self, i: usize, p: DVec3) -> Option<SurfacePoint> {
+        let x0 = self.x0[i];
+        self.colliders
+            .shapes
+            .iter()
+            .enumerate()
+            .find_map(|(j, shape)| {
+                let touch = self.touch(self.layer(i, j));
+                shape
+                    .contact(p, x0, self.reach(touch, p, x0))
+                    .filter(|s| s.distance <= touch)
+            })
+    }
+
+    /// A layer plus a relative round-off allowance: a particle projected to its layer rests
+    /// there.
+    #[inline]
+    fn touch(&self, layer: f64) -> f64 {
+        layer + (layer.abs() + self.colliders.thickness) * 1e-9 + 1e-12
+    }
+
+    /// How far to look from `p` for a surface within `layer` of it, m.
+    #[inline]
+    fn reach(&self, layer: f64, p: DVec3, x0: DVec3) -> f64 {
+        layer.max(self.colliders.thickness) + p.distance(x0)
+    }
+
+    /// Whether a particle resting on `surface` with objective gradient `grad` is held by it: the
+    /// descent direction −∇g pushes it into the collider.
+    #[inline]
+    pub fn holds(surface: &SurfacePoint, grad: DVec3) -> bool {
+        grad.dot(surface.normal) > 0.0
     }
 
     /// The friction slip of a lagged contact at `x`: the particle's displacement since the step
@@ -207,38 +279,31 @@ impl Penalty {
         d - c.normal * d.dot(c.normal)
     }
 
-    /// Penalty plus friction energy at `x`, joules.
+    /// The friction potential at `x`, joules.
     pub fn energy(&self, x: &[DVec3]) -> f64 {
-        let mut e = 0.0;
-        self.for_each_contact(x, |i, _, depth| {
-            e += 0.5 * self.stiffness[i] * depth * depth
-        });
         let (mu, eps) = (self.colliders.friction, self.slip_scale);
-        for c in &self.lagged {
-            let u = self.slip(c, x).length();
-            let f = if u < eps {
-                u * u / (2.0 * eps)
-            } else {
-                u - 0.5 * eps
-            };
-            e += mu * c.force * f;
-        }
-        e
+        self.lagged
+            .iter()
+            .map(|c| {
+                let u = self.slip(c, x).length();
+                let f = if u < eps {
+                    u * u / (2.0 * eps)
+                } else {
+                    u - 0.5 * eps
+                };
+                mu * c.force * f
+            })
+            .sum()
     }
 
-    /// Adds the gradient of [`Penalty::energy`] to `grad` and passes each particle's 3×3 Hessian
-    /// block (rows) to `block`.
+    /// Adds the gradient of [`NewtonContact::energy`] to `grad` and passes each particle's 3×3
+    /// Hessian block (rows) to `block`.
     pub fn add_derivatives(
         &self,
         x: &[DVec3],
         grad: &mut [DVec3],
         mut block: impl FnMut(usize, [[f64; 3]; 3]),
     ) {
-        self.for_each_contact(x, |i, sp, depth| {
-            let k = self.stiffness[i];
-            grad[i] -= sp.normal * (k * depth);
-            block(i, outer(sp.normal, sp.normal, k));
-        });
         let (mu, eps) = (self.colliders.friction, self.slip_scale);
         for c in &self.lagged {
             let i = c.particle as usize;
@@ -272,27 +337,50 @@ impl Penalty {
         }
     }
 
-    /// Records the contacts at the end of a step (normal forces for the next step's friction)
-    /// and returns how many particles touch a collider.
-    pub fn end_step(&mut self, x: &[DVec3]) -> usize {
+    /// Records the contacts at the end of a step, where `grad` is the objective's gradient
+    /// (friction included): each resting particle's normal force is the part of the gradient
+    /// the collider takes (∇g·n when positive), for the next step's friction. Thinned layers
+    /// grow back towards the thickness as their particles move away. Returns how many particles
+    /// rest on a collider.
+    pub fn end_step(&mut self, x: &[DVec3], grad: &[DVec3]) -> usize {
         let mut lagged = std::mem::take(&mut self.lagged);
         lagged.clear();
-        let mut touching = 0;
-        let mut last = usize::MAX;
-        self.for_each_contact(x, |i, sp, depth| {
-            lagged.push(LaggedContact {
-                particle: i as u32,
-                normal: sp.normal,
-                force: self.stiffness[i] * depth,
-            });
-            if i != last {
-                touching += 1;
-                last = i;
+        for (i, (p, g)) in x.iter().zip(grad).enumerate() {
+            if let Some(s) = self.resting(i, *p) {
+                lagged.push(LaggedContact {
+                    particle: i as u32,
+                    normal: s.normal,
+                    force: g.dot(s.normal).max(0.0),
+                });
             }
-        });
+        }
+        let t = self.colliders.thickness;
+        let shapes = self.colliders.shapes.len();
+        for k in 0..self.layer.len() {
+            if self.layer[k] < t {
+                let (i, j) = (k / shapes, k % shapes);
+                let reach = t + x[i].distance(self.x0[i]);
+                let distance = self.colliders.shapes[j]
+                    .contact(x[i], self.x0[i], reach)
+                    .map_or(t, |s| s.distance);
+                self.layer[k] = self.layer[k].max(distance).min(t);
+            }
+        }
+        let touching = lagged.len();
         self.lagged = lagged;
         touching
     }
+}
+
+/// The distance a particle starting at `start` (its contact with one collider, asked with the
+/// thickness `t` as reach; `None` when farther) is kept from that collider, m: `t`, or the
+/// distance it starts at when that is smaller. A garment draped on a body by another tool with a
+/// smaller margin stays where it is instead of being pushed off the body at the first step (a
+/// particle starting behind the surface of a solid is held where it is, not pushed through the
+/// body); the layer grows back as the particle moves away ([`NewtonContact::end_step`]).
+#[inline]
+pub fn rest_layer(t: f64, start: Option<SurfacePoint>) -> f64 {
+    start.map_or(t, |s| s.distance.min(t))
 }
 
 /// w·a bᵀ as rows.

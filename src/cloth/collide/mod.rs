@@ -4,7 +4,8 @@
 //! ([`Collider::contact`]): how far is the particle from the surface on the side it came from, and
 //! which way is out. A particle is in contact when that distance is below the collision
 //! thickness; the solvers then keep it at the thickness (the fast solver by projection with
-//! Coulomb friction, Newton by a stiff penalty with lagged friction, see [`contact`]).
+//! Coulomb friction, Newton as constraints of a projected Newton method with lagged friction, see
+//! [`contact`]).
 
 pub mod contact;
 pub mod mesh;
