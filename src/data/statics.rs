@@ -175,7 +175,7 @@ impl StaticMesh {
         if self.indices.is_empty() {
             return Some("has no triangle".into());
         }
-        if self.indices.len() % 3 != 0 {
+        if !self.indices.len().is_multiple_of(3) {
             return Some(format!(
                 "has {} indices, not a multiple of 3",
                 self.indices.len()

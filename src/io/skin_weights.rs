@@ -251,7 +251,7 @@ fn exact_sum(data: &mut [Vec<f32>], v: usize) {
 
 /// Appends a float VEC4 accessor (its own 4-byte-aligned view) and returns its index.
 fn push_weights(root: &mut json::Root, bin: &mut Vec<u8>, data: &[f32]) -> usize {
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let offset = bin.len();
