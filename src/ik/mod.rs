@@ -6,7 +6,7 @@
 //! ([`crate::path`]) and resample it to one target per frame → solve every frame with an
 //! [`IkSolver`] under the job's [`Constraints`] (pole, joint limits), warm-started from the
 //! previous frame → write the glTF
-//! ([`crate::export::skin`]) and the [`crate::bake::IkReport`].
+//! (the bake hands them to `export::skin`) and the [`crate::bake::IkReport`].
 //!
 //! Conventions: world coordinates are glTF's (+Y up, right-handed, scene units); rotations are
 //! unit quaternions (x, y, z, w) local to the joint's parent frame; a chain's base frame carries
