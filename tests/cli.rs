@@ -734,6 +734,9 @@ fn jobs_in_parallel_write_the_same_bytes_and_shards_split_the_jobs() {
         let scene = parallel_scene(dir);
         let (code, err) = scenebake(["run", scene.to_str().unwrap(), "--jobs", jobs]);
         assert_eq!(code, 0, "{err}");
+        // Each job's summary line reaches a non-terminal stderr too, numbered in file order.
+        assert!(err.contains("[1/4] lab: baked 30 frames"), "{err}");
+        assert!(err.contains("[4/4] circle: baked 150 frames"), "{err}");
     }
     let files = names_in(&one.path().join("out"));
     assert_eq!(files.len(), 5, "{files:?}"); // four outputs and the .bin of the .gltf

@@ -203,7 +203,8 @@ pub struct IkJob {
     /// Output file: .glb, or .gltf with a .bin beside it.
     #[cfg_attr(feature = "cli", arg(short = 'o', long, value_name = "FILE"))]
     pub output: PathBuf,
-    /// Write a JSON report of the bake (written by the caller: the job returns the report).
+    /// Write a JSON report of the bake (the library returns the report; the binary and scene
+    /// runs write it here).
     #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.json"))]
     pub report: Option<PathBuf>,
     /// Name for the job in summaries.

@@ -143,11 +143,14 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                 match &result {
                     Ok(outcome) => {
                         if !quiet {
-                            let _ = multi.println(format!(
-                                "[{}/{total}] {}",
-                                k + 1,
-                                summary_line(outcome)
-                            ));
+                            let line = format!("[{}/{total}] {}", k + 1, summary_line(outcome));
+                            // Above the bars on a terminal; plain lines otherwise (a hidden
+                            // display would swallow them).
+                            if multi.is_hidden() {
+                                eprintln!("{line}");
+                            } else {
+                                let _ = multi.println(line);
+                            }
                         }
                         super::interrupt::record_written(
                             outcome.files.iter().map(|(f, _)| f.clone()),
