@@ -117,11 +117,7 @@ pub mod de {
         D: Deserializer<'de>,
         T: FromStr<Err = Error>,
     {
-        let items = match OneOrMany::deserialize(d)? {
-            OneOrMany::One(s) => vec![s],
-            OneOrMany::Many(v) => v,
-        };
-        items
+        string_list(d)?
             .iter()
             .map(|s| s.parse::<T>().map_err(|e| D::Error::custom(e.detail())))
             .collect()

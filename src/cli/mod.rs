@@ -105,9 +105,7 @@ fn run_single(job: Job, quiet: bool) -> anyhow::Result<()> {
     if !quiet {
         eprintln!("{}", summary_line(&outcome));
     }
-    for w in outcome.report.warnings() {
-        eprintln!("warning: {}: {}", outcome.name, w.render(&flag));
-    }
+    print_warnings(&outcome, &flag);
     Ok(())
 }
 
@@ -177,10 +175,11 @@ pub fn write_report(path: &Path, value: &impl serde::Serialize) -> anyhow::Resul
         .context("cannot write the report")
 }
 
-/// Prints a scene job's warnings, parameters named by their scene keys (also with `--quiet`).
-pub fn print_scene_warnings(o: &Outcome) {
+/// Prints a job's warnings, parameters named by `vocabulary` (also with `--quiet`: a step above
+/// its tolerance or a repaired input is never silent).
+pub fn print_warnings(o: &Outcome, vocabulary: scenebake::param::Vocabulary<'_>) {
     for w in o.report.warnings() {
-        eprintln!("warning: {}: {w}", o.name);
+        eprintln!("warning: {}: {}", o.name, w.render(vocabulary));
     }
 }
 

@@ -14,9 +14,7 @@ use clap::Args;
 use indicatif::MultiProgress;
 use scenebake::scene::{Job, Scene, SceneJob};
 
-use super::{
-    print_scene_warnings, progress, run_job, summary_line, write_report, JobError, Outcome,
-};
+use super::{print_warnings, progress, run_job, summary_line, write_report, JobError, Outcome};
 
 /// Run the jobs of a scene file.
 #[derive(Debug, Args)]
@@ -105,8 +103,9 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
     let total = selected.len();
     // Longest expected first, so a long job does not start last on an otherwise idle core; the
     // table and reports keep the file order.
+    let costs: Vec<f64> = selected.iter().map(|j| cost_hint(&j.job)).collect();
     let mut order: Vec<usize> = (0..total).collect();
-    order.sort_by(|&a, &b| cost_hint(&selected[b].job).total_cmp(&cost_hint(&selected[a].job)));
+    order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]));
     let multi = MultiProgress::new();
     let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
@@ -180,7 +179,7 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
         }
     }
     for o in &outcomes {
-        print_scene_warnings(o);
+        print_warnings(o, &scenebake::param::scene_key);
     }
     if let Some(e) = first_error {
         return Err(e);

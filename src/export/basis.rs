@@ -73,7 +73,7 @@ use super::morph::{
     cloth_material, flip_v, push_weights_animation, CacheStats, EncodedMorph, Interpolation,
     MorphOptions,
 };
-use super::statics::push_static_meshes;
+use super::statics::push_scene;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 use crate::param::Param;
@@ -1220,17 +1220,7 @@ fn write(
         scale: c.quantized.then_some([c.scale as f32; 3]),
         ..Default::default()
     });
-    let start = b.buffer_len();
-    let mut nodes = vec![node];
-    nodes.extend(push_static_meshes(&mut b, &options.static_meshes));
-    bytes.statics = (b.buffer_len() - start) as u64;
-    let scene = b.root.push(json::Scene {
-        name: Some("scenebake".into()),
-        nodes,
-        extensions: None,
-        extras: Default::default(),
-    });
-    b.root.scene = Some(scene);
+    bytes.statics = push_scene(&mut b, node, &options.static_meshes);
 
     // Weights: one key per kept frame at its true time.
     let start = b.buffer_len();

@@ -21,7 +21,7 @@ use super::compact::{
 };
 use super::frames::RenderFrames;
 use super::gltf_doc::{channel, primitive, sampler, GltfBuilder, Written};
-use super::statics::{push_static_meshes, StaticMesh};
+use super::statics::{push_scene, StaticMesh};
 use crate::data::FrameCache;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -225,15 +225,7 @@ pub fn encode_morph_gltf(
         mesh: Some(gmesh),
         ..Default::default()
     });
-    let mut nodes = vec![node];
-    nodes.extend(push_static_meshes(&mut b, &options.static_meshes));
-    let scene = b.root.push(json::Scene {
-        name: Some("scenebake".into()),
-        nodes,
-        extensions: None,
-        extras: Default::default(),
-    });
-    b.root.scene = Some(scene);
+    push_scene(&mut b, node, &options.static_meshes);
     weights_animation(&mut b, node, &selection.kept, options);
     super::playback::stamp(
         &mut b.root,

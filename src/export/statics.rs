@@ -10,6 +10,27 @@ use json::validation::Checked::Valid;
 use super::gltf_doc::{primitive, GltfBuilder};
 pub use crate::data::StaticMesh;
 
+/// Makes the document's one scene: the animated `node` first, then `statics` (as
+/// [`push_static_meshes`]). Returns the bytes the static meshes added to the buffer.
+pub(crate) fn push_scene(
+    b: &mut GltfBuilder,
+    node: json::Index<json::Node>,
+    statics: &[StaticMesh],
+) -> u64 {
+    let start = b.buffer_len();
+    let mut nodes = vec![node];
+    nodes.extend(push_static_meshes(b, statics));
+    let bytes = (b.buffer_len() - start) as u64;
+    let scene = b.root.push(json::Scene {
+        name: Some("scenebake".into()),
+        nodes,
+        extensions: None,
+        extras: Default::default(),
+    });
+    b.root.scene = Some(scene);
+    bytes
+}
+
 /// Writes `statics` into `b` as one node each (with its mesh and a shared grey material) and
 /// returns the nodes, in order. The caller has checked [`StaticMesh::problem`].
 pub(crate) fn push_static_meshes(
