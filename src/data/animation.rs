@@ -233,10 +233,9 @@ impl Skeleton {
                 path.push(c);
                 cur = parents[c];
             }
-            let mut d = cur.map_or(0, |c| depth[c] + 1);
-            for &c in path.iter().rev() {
+            let first = cur.map_or(0, |c| depth[c] + 1);
+            for (d, &c) in (first..).zip(path.iter().rev()) {
                 depth[c] = d;
-                d += 1;
             }
         }
         let mut order: Vec<usize> = (0..n).collect();
