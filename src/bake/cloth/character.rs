@@ -91,7 +91,7 @@ pub fn bake_on_character(
     let rig_warnings = doc.warnings.clone();
     let clip = doc.clip(job.animation.as_deref().unwrap_or("#0"), Param::Animation)?;
     let skeleton = doc.skeleton()?;
-    let bodies = doc.skinned_meshes()?;
+    let bodies = doc.body_meshes()?;
     let cycle = clip.duration();
     let fps = positive(Param::Fps, job.fps.unwrap_or(super::defaults::FPS))?;
     // Whole frames per loop, so every loop starts on a frame: the bake's rate is adjusted to
