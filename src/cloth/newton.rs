@@ -648,6 +648,22 @@ impl StepSolver for NewtonSolver {
         if self.energy(&trial) < self.energy(x) {
             x.copy_from_slice(&trial);
         }
+        // With a moving body: also from x₀ + h·v₀ with the particles near the body carried along
+        // with its surface instead (cloth resting on a limb moves with it).
+        if let Some(c) = self.contact.as_ref().filter(|c| c.moves()) {
+            for (i, ((t, x0), v)) in trial.iter_mut().zip(&self.x0).zip(v.iter()).enumerate() {
+                let carry = c.carry(i);
+                *t = if carry == DVec3::ZERO {
+                    *x0 + *v * h
+                } else {
+                    *x0 + carry
+                };
+            }
+            self.project(&mut trial);
+            if self.energy(&trial) < self.energy(x) {
+                x.copy_from_slice(&trial);
+            }
+        }
         self.trial = trial;
         if let Some(hist) = &mut self.history {
             hist.clear();

@@ -278,6 +278,21 @@ impl NewtonContact {
         self.resting_on(i, p).map(|(_, s)| s)
     }
 
+    /// How far the moving colliders' surfaces near particle `i` move during the step, m (zero
+    /// when none is near or every collider is static).
+    #[inline]
+    pub fn carry(&self, i: usize) -> DVec3 {
+        let shapes = self.colliders.shapes.len();
+        self.carry
+            .get(i * shapes..(i + 1) * shapes)
+            .map_or(DVec3::ZERO, |c| c.iter().copied().sum())
+    }
+
+    /// True when a collider moves (its surface carries the particles near it).
+    pub fn moves(&self) -> bool {
+        !self.carry.is_empty()
+    }
+
     /// As [`NewtonContact::resting`], with the collider's index.
     #[inline]
     fn resting_on(&self, i: usize, p: DVec3) -> Option<(usize, SurfacePoint)> {
