@@ -421,3 +421,219 @@ fn an_interrupted_run_names_the_outputs_it_already_replaced() {
     );
     assert!(!dir.path().join("long.glb").exists());
 }
+
+/// The OBJ's `v` lines of object `object` (every object when `None`), read here independently.
+fn obj_object_positions(path: &Path, object: Option<&str>) -> Vec<[f64; 3]> {
+    let mut current = String::new();
+    let mut out = Vec::new();
+    for line in std::fs::read_to_string(path).unwrap().lines() {
+        if let Some(name) = line.strip_prefix("o ") {
+            current = name.trim().to_owned();
+        } else if let Some(v) = line.strip_prefix("v ") {
+            if object.is_none_or(|o| o == current) {
+                let c: Vec<f64> = v.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                out.push([c[0], c[1], c[2]]);
+            }
+        }
+    }
+    out
+}
+
+/// Mesh `name` of a written glTF: its distinct positions (rounded to 0.01 mm) and triangle count.
+fn written_mesh(path: &Path, name: &str) -> (Vec<[i64; 3]>, usize) {
+    let (doc, buffers, _) = gltf::import(path).unwrap();
+    let mesh = doc
+        .meshes()
+        .find(|m| m.name() == Some(name))
+        .unwrap_or_else(|| panic!("{}: no mesh {name}", path.display()));
+    let (mut keys, mut triangles) = (Vec::new(), 0);
+    for prim in mesh.primitives() {
+        let reader = prim.reader(|b| Some(&buffers[b.index()]));
+        let p: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+        triangles += reader
+            .read_indices()
+            .map_or(p.len(), |i| i.into_u32().count())
+            / 3;
+        keys.extend(
+            p.iter()
+                .map(|p| p.map(|c| (f64::from(c) * 1e5).round() as i64)),
+        );
+    }
+    keys.sort();
+    keys.dedup();
+    (keys, triangles)
+}
+
+fn keys(points: &[[f64; 3]]) -> Vec<[i64; 3]> {
+    let mut k: Vec<[i64; 3]> = points
+        .iter()
+        .map(|p| p.map(|c| (c * 1e5).round() as i64))
+        .collect();
+    k.sort();
+    k.dedup();
+    k
+}
+
+/// `mesh:FILE.obj#OBJECT` takes that object only, `mesh:FILE.glb[#NAME]` reads a glTF (it was
+/// refused as "not a text file"), `--up z` turns a collider file like the input, and a missing
+/// object is an error naming the file and listing what it holds. What each bake used is read
+/// back from the collider it writes into its glTF and compared with the OBJ's `v` lines.
+#[test]
+fn a_mesh_collider_takes_one_object_and_reads_gltf() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = crate_path("meshes/table.obj");
+    let bake = |collider: &str, out: &str| {
+        let (code, _, err) = run(
+            dir.path(),
+            &[
+                "cloth",
+                "--preset",
+                "lab-cloth",
+                "--frames",
+                "2",
+                "--collider",
+                collider,
+                "-o",
+                out,
+            ],
+        );
+        assert_eq!(code, 0, "{collider}: {err}");
+        dir.path().join(out)
+    };
+
+    // The whole table (5 objects, 12 triangles each), then its top only.
+    let all = bake(&format!("mesh:{}", s(&table)), "all.glb");
+    let (got, triangles) = written_mesh(&all, "collider_1");
+    assert_eq!(
+        (got, triangles),
+        (keys(&obj_object_positions(&table, None)), 60)
+    );
+    let top = bake(&format!("mesh:{}#top", s(&table)), "top.glb");
+    let (top_keys, triangles) = written_mesh(&top, "collider_1");
+    assert_eq!(
+        (&top_keys, triangles),
+        (&keys(&obj_object_positions(&table, Some("top"))), 12)
+    );
+
+    // A glTF collider: the top as the previous bake wrote it, by node name; and without a name,
+    // every mesh node of the file (the lab cloth's 200 triangles and the top's 12).
+    let again = bake("mesh:top.glb#collider_1", "again.glb");
+    assert_eq!(written_mesh(&again, "collider_1"), (top_keys.clone(), 12));
+    let every = bake("mesh:top.glb", "every.glb");
+    assert_eq!(written_mesh(&every, "collider_1").1, 212);
+
+    // --up z turns the collider file as it turns the input.
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth",
+            &s(&crate_path("meshes/cloth_z_up.obj")),
+            "--up",
+            "z",
+            "--frames",
+            "1",
+            "--collider",
+            &format!("mesh:{}#top", s(&table)),
+            "-o",
+            "up.glb",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    let turned: Vec<[f64; 3]> = obj_object_positions(&table, Some("top"))
+        .iter()
+        .map(|p| [p[0], p[2], -p[1]])
+        .collect();
+    assert_eq!(
+        written_mesh(&dir.path().join("up.glb"), "collider_1").0,
+        keys(&turned)
+    );
+
+    // Missing objects: the file, the name and what there is.
+    fails_exactly(
+        dir.path(),
+        &["cloth", "--preset", "lab-cloth", "--collider", &format!("mesh:{}#lid", s(&table)), "-o", "x.glb"],
+        &format!("error: invalid value for --collider: {}: no object or group named `lid` with faces (known: leg1, leg2, leg3, leg4, top)", s(&table)),
+    );
+    fails_exactly(
+        dir.path(),
+        &["cloth", "--preset", "lab-cloth", "--collider", "mesh:top.glb#lid", "-o", "x.glb"],
+        "error: invalid value for --collider: top.glb: no mesh or mesh node named `lid` (meshes: lab_cloth, collider_1; nodes with a mesh: lab_cloth, collider_1)",
+    );
+    fails_exactly(
+        dir.path(),
+        &["cloth", "--preset", "lab-cloth", "--collider", "mesh:body.tet", "-o", "x.glb"],
+        "error: invalid value for --collider: mesh:body.tet: a mesh collider is an .obj, .gltf or .glb file",
+    );
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--collider",
+            "mesh:top.glb#",
+            "-o",
+            "x.glb",
+        ],
+    );
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("`mesh:top.glb#`: the object name after `#` is empty (mesh:top.glb#NAME, or mesh:top.glb for every object)"),
+        "{err}"
+    );
+}
+
+/// Every file a README example writes (`-o`, `--report`, `--vat` and the files beside them),
+/// with the command line that writes it.
+fn readme_outputs(readme: &str) -> Vec<(String, String)> {
+    let mut commands = Vec::new();
+    let mut current = String::new();
+    for line in readme.lines() {
+        let line = line.split(" # ").next().unwrap_or("").trim();
+        if current.is_empty() && !line.starts_with("scenebake ") {
+            continue;
+        }
+        current.push_str(line.trim_end_matches('\\'));
+        current.push(' ');
+        if !line.ends_with('\\') {
+            commands.push(std::mem::take(&mut current));
+        }
+    }
+    let mut out = Vec::new();
+    for cmd in commands {
+        let words: Vec<&str> = cmd.split_whitespace().collect();
+        for pair in words.windows(2) {
+            let file = pair[1].to_owned();
+            match pair[0] {
+                "-o" | "--output" | "--report" => {
+                    if let Some(stem) = file.strip_suffix(".gltf") {
+                        out.push((format!("{stem}.bin"), cmd.clone()));
+                    }
+                    out.push((file, cmd.clone()));
+                }
+                "--vat" => {
+                    let stem = file.trim_end_matches(".exr");
+                    out.push((format!("{stem}.normals.exr"), cmd.clone()));
+                    out.push((format!("{stem}.json"), cmd.clone()));
+                    out.push((file, cmd.clone()));
+                }
+                _ => {}
+            }
+        }
+    }
+    out
+}
+
+/// No two README examples write the same file (they overwrote each other's outputs).
+#[test]
+fn readme_examples_write_distinct_files() {
+    let readme = std::fs::read_to_string(crate_path("README.md")).unwrap();
+    let outputs = readme_outputs(&readme);
+    assert!(outputs.len() >= 15, "{outputs:?}");
+    let mut seen = std::collections::HashMap::new();
+    for (file, cmd) in &outputs {
+        if let Some(first) = seen.insert(file.clone(), cmd.clone()) {
+            panic!("README examples both write {file}:\n  {first}\n  {cmd}");
+        }
+    }
+}

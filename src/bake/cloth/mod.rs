@@ -30,7 +30,7 @@ use crate::export::morph::{check_cache, encode_morph_gltf};
 use crate::export::vat::{encode_vat, vat_paths};
 use crate::export::{BasisOptions, QuantizeMode};
 use crate::export::{MorphOptions, RenderFrames, VatOptions, Written};
-use crate::io::{gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
+use crate::io::{collider, gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
 use crate::mesh::Mesh;
 use crate::param::{Param, Text};
 use crate::spec::{non_negative, positive};
@@ -375,8 +375,15 @@ fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
         .collider
         .iter()
         .map(|spec| {
-            Collider::from_spec(spec, &|path| {
-                let mesh = obj::load_obj(path, &obj::ObjOptions::default())?;
+            Collider::from_spec(spec, &|path, part| {
+                let mut mesh = collider::load_collider_mesh(path, part)?;
+                // A collider file comes from the same tool as the input: turned by --up too
+                // (not placed by --scale/--translate: colliders are in the scene's coordinates).
+                if job.up_z() {
+                    for p in &mut mesh.positions {
+                        *p = DVec3::new(p.x, p.z, -p.y);
+                    }
+                }
                 MeshCollider::from_mesh(path, mesh.positions, mesh.triangles)
             })
         })
