@@ -637,3 +637,114 @@ fn readme_examples_write_distinct_files() {
         }
     }
 }
+
+/// Every cloth encoding records the bake's fps and frame range in asset.extras (Blender keeps its
+/// scene at 24 fps and frames 1–250 otherwise; `--basis` exports had no record), and the record
+/// agrees with the animation it names: the first, whose last key is at frame_end / fps.
+#[test]
+fn every_cloth_encoding_records_fps_and_frame_range() {
+    let dir = tempfile::tempdir().unwrap();
+    for (out, extra) in [
+        ("plain.glb", &[][..]),
+        ("compact.glb", &["--keyframe-tolerance", "0.001"][..]),
+        ("basis.glb", &["--basis", "auto", "--quantize", "off"][..]),
+        ("step.gltf", &["--interpolation", "step"][..]),
+    ] {
+        let mut args = vec![
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--fps",
+            "60",
+            "--frames",
+            "12",
+            "--name",
+            "sheet",
+            "-o",
+            out,
+        ];
+        args.extend_from_slice(extra);
+        let (code, _, err) = run(dir.path(), &args);
+        assert_eq!(code, 0, "{out}: {err}");
+        let (doc, buffers, _) = gltf::import(dir.path().join(out)).unwrap();
+        let extras: serde_json::Value =
+            serde_json::from_str(doc.as_json().asset.extras.as_ref().expect(out).get()).unwrap();
+        assert_eq!(
+            extras["scenebake"],
+            serde_json::json!({"fps": 60.0, "frame_start": 0, "frame_end": 12, "animation": "sheet"}),
+            "{out}"
+        );
+        let anim = doc.animations().next().unwrap();
+        assert_eq!(anim.name(), Some("sheet"), "{out}");
+        let times: Vec<f32> = anim
+            .channels()
+            .next()
+            .unwrap()
+            .reader(|b| Some(&buffers[b.index()]))
+            .read_inputs()
+            .unwrap()
+            .collect();
+        assert!(
+            (f64::from(*times.last().unwrap()) - 12.0 / 60.0).abs() < 1e-6,
+            "{out}: {times:?}"
+        );
+    }
+}
+
+/// Blender's names for unnamed nodes work in --chain: RiggedSimple with every node name removed,
+/// baked with `Node_3..Node_4` (and `#3..#4`), animates the same nodes with the same keys as the
+/// named original baked with `Bone..Bone.001`.
+#[test]
+fn blenders_node_n_names_bake_an_unnamed_rig() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = crate_path("meshes/RiggedSimple.gltf");
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&src).unwrap()).unwrap();
+    for node in json["nodes"].as_array_mut().unwrap() {
+        node.as_object_mut().unwrap().remove("name");
+    }
+    std::fs::write(dir.path().join("unnamed.gltf"), json.to_string()).unwrap();
+    std::fs::copy(
+        crate_path("meshes/RiggedSimple0.bin"),
+        dir.path().join("RiggedSimple0.bin"),
+    )
+    .unwrap();
+    let bake = |rig: &str, chain: &str, out: &str| {
+        let (code, _, err) = run(
+            dir.path(),
+            &[
+                "ik", "--rig", rig, "--chain", chain, "--curve", "circle", "-o", out,
+            ],
+        );
+        assert_eq!(code, 0, "{chain}: {err}");
+        let (doc, buffers, _) = gltf::import(dir.path().join(out)).unwrap();
+        let anim = doc.animations().next().unwrap();
+        let mut channels: Vec<(usize, String, Vec<f32>)> = anim
+            .channels()
+            .map(|c| {
+                let r = c.reader(|b| Some(&buffers[b.index()]));
+                let values: Vec<f32> = match r.read_outputs().unwrap() {
+                    gltf::animation::util::ReadOutputs::Rotations(q) => {
+                        q.into_f32().flatten().collect()
+                    }
+                    gltf::animation::util::ReadOutputs::Translations(t) => t.flatten().collect(),
+                    gltf::animation::util::ReadOutputs::Scales(s) => s.flatten().collect(),
+                    gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => {
+                        w.into_f32().collect()
+                    }
+                };
+                (
+                    c.target().node().index(),
+                    format!("{:?}", c.target().property()),
+                    values,
+                )
+            })
+            .collect();
+        channels.sort_by(|a, b| (a.0, &a.1).cmp(&(b.0, &b.1)));
+        channels
+    };
+    let named = bake(&s(&src), "Bone..Bone.001", "named.glb");
+    assert!(named.iter().any(|c| c.0 == 4), "{named:?}");
+    assert_eq!(bake("unnamed.gltf", "Node_3..Node_4", "blender.glb"), named);
+    assert_eq!(bake("unnamed.gltf", "#3..#4", "index.glb"), named);
+}
