@@ -33,6 +33,15 @@ import { fileURLToPath } from 'node:url';
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 
+// three's FileLoader (a .gltf's buffers, inlined as data: URIs below) reports progress with the
+// browser's ProgressEvent, which Node 20 lacks.
+globalThis.ProgressEvent ??= class ProgressEvent extends Event {
+    constructor(type, init = {}) {
+        super(type);
+        Object.assign(this, init);
+    }
+};
+
 const here = path.dirname(fileURLToPath(import.meta.url));
 const evaluator = path.join(here, 'blender', 'gltf_eval.py');
 
