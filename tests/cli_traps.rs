@@ -402,7 +402,7 @@ fn an_interrupted_run_names_the_outputs_it_already_replaced() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
         dir.path().join("two.toml"),
-        "[[cloth]]\nname = \"quick\"\npreset = \"lab-cloth\"\nframes = 2\noutput = \"quick.glb\"\n\n[[cloth]]\nname = \"long\"\npreset = \"lab-cloth\"\nresolution = 150\nframes = 5000\noutput = \"long.glb\"\n",
+        "[[cloth]]\nname = \"quick\"\npreset = \"lab-cloth\"\nframes = 2\noutput = \"quick.glb\"\n\n[[cloth]]\nname = \"long\"\npreset = \"lab-cloth\"\nresolution = 150\nframes = 1500\noutput = \"long.glb\"\n",
     )
     .unwrap();
     let child = common::cli::bin()
@@ -747,4 +747,44 @@ fn blenders_node_n_names_bake_an_unnamed_rig() {
     assert!(named.iter().any(|c| c.0 == 4), "{named:?}");
     assert_eq!(bake("unnamed.gltf", "Node_3..Node_4", "blender.glb"), named);
     assert_eq!(bake("unnamed.gltf", "#3..#4", "index.glb"), named);
+}
+
+/// A bake whose output will be large says so before it starts (it used to be silent until the
+/// end, hours later): the first line on stderr, while the bake runs; Ctrl-C then leaves nothing.
+/// 1001² vertices × 24 bytes × 51 frames = 1,226,449,224 bytes, over the 1 GiB threshold.
+#[cfg(unix)]
+#[test]
+fn a_large_output_is_announced_before_the_bake() {
+    use std::io::BufRead;
+    assert_eq!(1001u64 * 1001 * 24 * 51, 1_226_449_224);
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = common::cli::bin()
+        .args([
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--resolution",
+            "1000",
+            "--frames",
+            "50",
+            "-o",
+            "big.glb",
+        ])
+        .current_dir(dir.path())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut first = String::new();
+    stderr.read_line(&mut first).unwrap();
+    assert_eq!(
+        first,
+        "warning: lab_cloth: the output will be about 1.2 GB (50 frames of 1002001 vertices); \
+         --keyframe-tolerance can shrink it\n"
+    );
+    assert!(child.try_wait().unwrap().is_none(), "the bake goes on");
+    common::cli::signal(child.id(), "INT");
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    assert!(!dir.path().join("big.glb").exists());
 }

@@ -553,6 +553,28 @@ pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
     }
 }
 
+/// The output-size warning [`prepare_cloth`] also gives (a dense cache over 1 GiB), computed
+/// before anything is simulated so that a front end can show it before a long bake; it loads the
+/// input once more. `None` below the threshold, and when the input or the preset's resolution is
+/// invalid ([`prepare_cloth`] reports those).
+///
+/// # Errors
+/// [`Error::Param`] naming `--frames` when the cache would not fit in a GLB, as [`prepare_cloth`].
+pub fn output_size_warning(job: &ClothJob) -> Result<Option<Text>> {
+    let frames = job.frames.unwrap_or(defaults::FRAMES).max(1);
+    let vertices = match job.source() {
+        Ok(ClothSource::LabCloth { resolution }) if (1..=2000).contains(&resolution) => {
+            (resolution as usize + 1).pow(2)
+        }
+        Ok(ClothSource::File(path)) => match load_body(&path, job) {
+            Ok(mesh) => mesh.render_vertices.len(),
+            Err(_) => return Ok(None),
+        },
+        _ => return Ok(None),
+    };
+    crate::export::estimate::check_frames(frames, vertices, job.normals == Switch::On)
+}
+
 /// `--basis-tolerance` when neither it nor `--keyframe-tolerance` is given: 1 mm.
 pub const DEFAULT_BASIS_TOLERANCE: f64 = 1e-3;
 
