@@ -80,7 +80,7 @@ fn cases(frames: usize) -> Vec<Case> {
         if name == "circle_skirt" {
             job.translate = Some(scenebake::glam::DVec3::new(0.0, 0.15, 0.0));
         }
-        job.collider = vec![ColliderSpec::Mesh(
+        job.collider = vec![ColliderSpec::mesh(
             PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("meshes/table.obj"),
         )];
         add(format!("{name} cotton newton 0.1 dropped on a table"), job);
@@ -89,7 +89,7 @@ fn cases(frames: usize) -> Vec<Case> {
         ClothSource::File(garment("dress_draped.obj")),
         "unused.glb".into(),
     );
-    job.collider = vec![ColliderSpec::Mesh(garment("mannequin.obj"))];
+    job.collider = vec![ColliderSpec::mesh(garment("mannequin.obj"))];
     add("dress on mannequin cotton newton 0.1".into(), job);
     // The dress is judged after 30 frames, whatever FRAMES says.
     if let Some(dress) = out.last_mut() {

@@ -345,8 +345,8 @@ fn resolve_cloth(job: &mut ClothJob, dir: &Path) {
     job.report = job.report.as_deref().map(at);
     job.vat = job.vat.as_deref().map(at);
     for c in &mut job.collider {
-        if let ColliderSpec::Mesh(p) = c {
-            *p = at(p);
+        if let ColliderSpec::Mesh { path, .. } = c {
+            *path = at(path);
         }
     }
 }
@@ -465,7 +465,10 @@ mod tests {
         assert_eq!(c.pin.len(), 1);
         assert_eq!(
             c.collider[0],
-            ColliderSpec::Mesh(PathBuf::from("scenes/table.obj"))
+            ColliderSpec::Mesh {
+                path: PathBuf::from("scenes/table.obj"),
+                part: None
+            }
         );
         assert_eq!(scene.jobs[1].name, "ik1");
     }

@@ -402,7 +402,7 @@ fn an_interrupted_run_names_the_outputs_it_already_replaced() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
         dir.path().join("two.toml"),
-        "[[cloth]]\nname = \"quick\"\npreset = \"lab-cloth\"\nframes = 2\noutput = \"quick.glb\"\n\n[[cloth]]\nname = \"long\"\npreset = \"lab-cloth\"\nresolution = 150\nframes = 5000\noutput = \"long.glb\"\n",
+        "[[cloth]]\nname = \"quick\"\npreset = \"lab-cloth\"\nframes = 2\noutput = \"quick.glb\"\n\n[[cloth]]\nname = \"long\"\npreset = \"lab-cloth\"\nresolution = 150\nframes = 1500\noutput = \"long.glb\"\n",
     )
     .unwrap();
     let child = common::cli::bin()
@@ -420,4 +420,371 @@ fn an_interrupted_run_names_the_outputs_it_already_replaced() {
         "\ninterrupted: the job being baked wrote nothing, but finished jobs of this run replaced 1 file: quick.glb\n"
     );
     assert!(!dir.path().join("long.glb").exists());
+}
+
+/// The OBJ's `v` lines of object `object` (every object when `None`), read here independently.
+fn obj_object_positions(path: &Path, object: Option<&str>) -> Vec<[f64; 3]> {
+    let mut current = String::new();
+    let mut out = Vec::new();
+    for line in std::fs::read_to_string(path).unwrap().lines() {
+        if let Some(name) = line.strip_prefix("o ") {
+            current = name.trim().to_owned();
+        } else if let Some(v) = line.strip_prefix("v ") {
+            if object.is_none_or(|o| o == current) {
+                let c: Vec<f64> = v.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                out.push([c[0], c[1], c[2]]);
+            }
+        }
+    }
+    out
+}
+
+/// Mesh `name` of a written glTF: its distinct positions (rounded to 0.01 mm) and triangle count.
+fn written_mesh(path: &Path, name: &str) -> (Vec<[i64; 3]>, usize) {
+    let (doc, buffers, _) = gltf::import(path).unwrap();
+    let mesh = doc
+        .meshes()
+        .find(|m| m.name() == Some(name))
+        .unwrap_or_else(|| panic!("{}: no mesh {name}", path.display()));
+    let (mut keys, mut triangles) = (Vec::new(), 0);
+    for prim in mesh.primitives() {
+        let reader = prim.reader(|b| Some(&buffers[b.index()]));
+        let p: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+        triangles += reader
+            .read_indices()
+            .map_or(p.len(), |i| i.into_u32().count())
+            / 3;
+        keys.extend(
+            p.iter()
+                .map(|p| p.map(|c| (f64::from(c) * 1e5).round() as i64)),
+        );
+    }
+    keys.sort();
+    keys.dedup();
+    (keys, triangles)
+}
+
+fn keys(points: &[[f64; 3]]) -> Vec<[i64; 3]> {
+    let mut k: Vec<[i64; 3]> = points
+        .iter()
+        .map(|p| p.map(|c| (c * 1e5).round() as i64))
+        .collect();
+    k.sort();
+    k.dedup();
+    k
+}
+
+/// `mesh:FILE.obj#OBJECT` takes that object only, `mesh:FILE.glb[#NAME]` reads a glTF (it was
+/// refused as "not a text file"), `--up z` turns a collider file like the input, and a missing
+/// object is an error naming the file and listing what it holds. What each bake used is read
+/// back from the collider it writes into its glTF and compared with the OBJ's `v` lines.
+#[test]
+fn a_mesh_collider_takes_one_object_and_reads_gltf() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = crate_path("meshes/table.obj");
+    let bake = |collider: &str, out: &str| {
+        let (code, _, err) = run(
+            dir.path(),
+            &[
+                "cloth",
+                "--preset",
+                "lab-cloth",
+                "--frames",
+                "2",
+                "--collider",
+                collider,
+                "-o",
+                out,
+            ],
+        );
+        assert_eq!(code, 0, "{collider}: {err}");
+        dir.path().join(out)
+    };
+
+    // The whole table (5 objects, 12 triangles each), then its top only.
+    let all = bake(&format!("mesh:{}", s(&table)), "all.glb");
+    let (got, triangles) = written_mesh(&all, "collider_1");
+    assert_eq!(
+        (got, triangles),
+        (keys(&obj_object_positions(&table, None)), 60)
+    );
+    let top = bake(&format!("mesh:{}#top", s(&table)), "top.glb");
+    let (top_keys, triangles) = written_mesh(&top, "collider_1");
+    assert_eq!(
+        (&top_keys, triangles),
+        (&keys(&obj_object_positions(&table, Some("top"))), 12)
+    );
+
+    // A glTF collider: the top as the previous bake wrote it, by node name; and without a name,
+    // every mesh node of the file (the lab cloth's 200 triangles and the top's 12).
+    let again = bake("mesh:top.glb#collider_1", "again.glb");
+    assert_eq!(written_mesh(&again, "collider_1"), (top_keys.clone(), 12));
+    let every = bake("mesh:top.glb", "every.glb");
+    assert_eq!(written_mesh(&every, "collider_1").1, 212);
+
+    // --up z turns the collider file as it turns the input.
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth",
+            &s(&crate_path("meshes/cloth_z_up.obj")),
+            "--up",
+            "z",
+            "--frames",
+            "1",
+            "--collider",
+            &format!("mesh:{}#top", s(&table)),
+            "-o",
+            "up.glb",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    let turned: Vec<[f64; 3]> = obj_object_positions(&table, Some("top"))
+        .iter()
+        .map(|p| [p[0], p[2], -p[1]])
+        .collect();
+    assert_eq!(
+        written_mesh(&dir.path().join("up.glb"), "collider_1").0,
+        keys(&turned)
+    );
+
+    // Missing objects: the file, the name and what there is.
+    fails_exactly(
+        dir.path(),
+        &["cloth", "--preset", "lab-cloth", "--collider", &format!("mesh:{}#lid", s(&table)), "-o", "x.glb"],
+        &format!("error: invalid value for --collider: {}: no object or group named `lid` with faces (known: leg1, leg2, leg3, leg4, top)", s(&table)),
+    );
+    fails_exactly(
+        dir.path(),
+        &["cloth", "--preset", "lab-cloth", "--collider", "mesh:top.glb#lid", "-o", "x.glb"],
+        "error: invalid value for --collider: top.glb: no mesh or mesh node named `lid` (meshes: lab_cloth, collider_1; nodes with a mesh: lab_cloth, collider_1)",
+    );
+    fails_exactly(
+        dir.path(),
+        &["cloth", "--preset", "lab-cloth", "--collider", "mesh:body.tet", "-o", "x.glb"],
+        "error: invalid value for --collider: mesh:body.tet: a mesh collider is an .obj, .gltf or .glb file",
+    );
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--collider",
+            "mesh:top.glb#",
+            "-o",
+            "x.glb",
+        ],
+    );
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("`mesh:top.glb#`: the object name after `#` is empty (mesh:top.glb#NAME, or mesh:top.glb for every object)"),
+        "{err}"
+    );
+}
+
+/// Every file a README example writes (`-o`, `--report`, `--vat` and the files beside them),
+/// with the command line that writes it.
+fn readme_outputs(readme: &str) -> Vec<(String, String)> {
+    let mut commands = Vec::new();
+    let mut current = String::new();
+    for line in readme.lines() {
+        let line = line.split(" # ").next().unwrap_or("").trim();
+        if current.is_empty() && !line.starts_with("scenebake ") {
+            continue;
+        }
+        current.push_str(line.trim_end_matches('\\'));
+        current.push(' ');
+        if !line.ends_with('\\') {
+            commands.push(std::mem::take(&mut current));
+        }
+    }
+    let mut out = Vec::new();
+    for cmd in commands {
+        let words: Vec<&str> = cmd.split_whitespace().collect();
+        for pair in words.windows(2) {
+            let file = pair[1].to_owned();
+            match pair[0] {
+                "-o" | "--output" | "--report" => {
+                    if let Some(stem) = file.strip_suffix(".gltf") {
+                        out.push((format!("{stem}.bin"), cmd.clone()));
+                    }
+                    out.push((file, cmd.clone()));
+                }
+                "--vat" => {
+                    let stem = file.trim_end_matches(".exr");
+                    out.push((format!("{stem}.normals.exr"), cmd.clone()));
+                    out.push((format!("{stem}.json"), cmd.clone()));
+                    out.push((file, cmd.clone()));
+                }
+                _ => {}
+            }
+        }
+    }
+    out
+}
+
+/// No two README examples write the same file (they overwrote each other's outputs).
+#[test]
+fn readme_examples_write_distinct_files() {
+    let readme = std::fs::read_to_string(crate_path("README.md")).unwrap();
+    let outputs = readme_outputs(&readme);
+    assert!(outputs.len() >= 15, "{outputs:?}");
+    let mut seen = std::collections::HashMap::new();
+    for (file, cmd) in &outputs {
+        if let Some(first) = seen.insert(file.clone(), cmd.clone()) {
+            panic!("README examples both write {file}:\n  {first}\n  {cmd}");
+        }
+    }
+}
+
+/// Every cloth encoding records the bake's fps and frame range in asset.extras (Blender keeps its
+/// scene at 24 fps and frames 1–250 otherwise; `--basis` exports had no record), and the record
+/// agrees with the animation it names: the first, whose last key is at frame_end / fps.
+#[test]
+fn every_cloth_encoding_records_fps_and_frame_range() {
+    let dir = tempfile::tempdir().unwrap();
+    for (out, extra) in [
+        ("plain.glb", &[][..]),
+        ("compact.glb", &["--keyframe-tolerance", "0.001"][..]),
+        ("basis.glb", &["--basis", "auto", "--quantize", "off"][..]),
+        ("step.gltf", &["--interpolation", "step"][..]),
+    ] {
+        let mut args = vec![
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--fps",
+            "60",
+            "--frames",
+            "12",
+            "--name",
+            "sheet",
+            "-o",
+            out,
+        ];
+        args.extend_from_slice(extra);
+        let (code, _, err) = run(dir.path(), &args);
+        assert_eq!(code, 0, "{out}: {err}");
+        let (doc, buffers, _) = gltf::import(dir.path().join(out)).unwrap();
+        let extras: serde_json::Value =
+            serde_json::from_str(doc.as_json().asset.extras.as_ref().expect(out).get()).unwrap();
+        assert_eq!(
+            extras["scenebake"],
+            serde_json::json!({"fps": 60.0, "frame_start": 0, "frame_end": 12, "animation": "sheet"}),
+            "{out}"
+        );
+        let anim = doc.animations().next().unwrap();
+        assert_eq!(anim.name(), Some("sheet"), "{out}");
+        let times: Vec<f32> = anim
+            .channels()
+            .next()
+            .unwrap()
+            .reader(|b| Some(&buffers[b.index()]))
+            .read_inputs()
+            .unwrap()
+            .collect();
+        assert!(
+            (f64::from(*times.last().unwrap()) - 12.0 / 60.0).abs() < 1e-6,
+            "{out}: {times:?}"
+        );
+    }
+}
+
+/// Blender's names for unnamed nodes work in --chain: RiggedSimple with every node name removed,
+/// baked with `Node_3..Node_4` (and `#3..#4`), animates the same nodes with the same keys as the
+/// named original baked with `Bone..Bone.001`.
+#[test]
+fn blenders_node_n_names_bake_an_unnamed_rig() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = crate_path("meshes/RiggedSimple.gltf");
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&src).unwrap()).unwrap();
+    for node in json["nodes"].as_array_mut().unwrap() {
+        node.as_object_mut().unwrap().remove("name");
+    }
+    std::fs::write(dir.path().join("unnamed.gltf"), json.to_string()).unwrap();
+    std::fs::copy(
+        crate_path("meshes/RiggedSimple0.bin"),
+        dir.path().join("RiggedSimple0.bin"),
+    )
+    .unwrap();
+    let bake = |rig: &str, chain: &str, out: &str| {
+        let (code, _, err) = run(
+            dir.path(),
+            &[
+                "ik", "--rig", rig, "--chain", chain, "--curve", "circle", "-o", out,
+            ],
+        );
+        assert_eq!(code, 0, "{chain}: {err}");
+        let (doc, buffers, _) = gltf::import(dir.path().join(out)).unwrap();
+        let anim = doc.animations().next().unwrap();
+        let mut channels: Vec<(usize, String, Vec<f32>)> = anim
+            .channels()
+            .map(|c| {
+                let r = c.reader(|b| Some(&buffers[b.index()]));
+                let values: Vec<f32> = match r.read_outputs().unwrap() {
+                    gltf::animation::util::ReadOutputs::Rotations(q) => {
+                        q.into_f32().flatten().collect()
+                    }
+                    gltf::animation::util::ReadOutputs::Translations(t) => t.flatten().collect(),
+                    gltf::animation::util::ReadOutputs::Scales(s) => s.flatten().collect(),
+                    gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => {
+                        w.into_f32().collect()
+                    }
+                };
+                (
+                    c.target().node().index(),
+                    format!("{:?}", c.target().property()),
+                    values,
+                )
+            })
+            .collect();
+        channels.sort_by(|a, b| (a.0, &a.1).cmp(&(b.0, &b.1)));
+        channels
+    };
+    let named = bake(&s(&src), "Bone..Bone.001", "named.glb");
+    assert!(named.iter().any(|c| c.0 == 4), "{named:?}");
+    assert_eq!(bake("unnamed.gltf", "Node_3..Node_4", "blender.glb"), named);
+    assert_eq!(bake("unnamed.gltf", "#3..#4", "index.glb"), named);
+}
+
+/// A bake whose output will be large says so before it starts (it used to be silent until the
+/// end, hours later): the first line on stderr, while the bake runs; Ctrl-C then leaves nothing.
+/// 1001² vertices × 24 bytes × 51 frames = 1,226,449,224 bytes, over the 1 GiB threshold.
+#[cfg(unix)]
+#[test]
+fn a_large_output_is_announced_before_the_bake() {
+    use std::io::BufRead;
+    assert_eq!(1001u64 * 1001 * 24 * 51, 1_226_449_224);
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = common::cli::bin()
+        .args([
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--resolution",
+            "1000",
+            "--frames",
+            "50",
+            "-o",
+            "big.glb",
+        ])
+        .current_dir(dir.path())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut first = String::new();
+    stderr.read_line(&mut first).unwrap();
+    assert_eq!(
+        first,
+        "warning: lab_cloth: the output will be about 1.2 GB (50 frames of 1002001 vertices); \
+         --keyframe-tolerance can shrink it\n"
+    );
+    assert!(child.try_wait().unwrap().is_none(), "the bake goes on");
+    common::cli::signal(child.id(), "INT");
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    assert!(!dir.path().join("big.glb").exists());
 }

@@ -418,7 +418,7 @@ fn sheet_rests_on_the_table_mesh() {
         let mut job = job("plane_30x30.obj", solver_kind, 20);
         job.scale = 1.6;
         job.translate = Some(DVec3::new(0.0, 0.9, 0.0));
-        job.collider = vec![ColliderSpec::Mesh(mesh_path("table.obj"))];
+        job.collider = vec![ColliderSpec::mesh(mesh_path("table.obj"))];
         job.stiffness = Some(200.0);
         job.density = Some(0.5);
         job.max_newton = 20;

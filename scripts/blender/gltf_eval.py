@@ -11,6 +11,11 @@ Used by scripts/blender_check.py (inside Blender) to compare what Blender evalua
 the file says; runs with any python3 that has numpy:
 
     python3 scripts/blender/gltf_eval.py FILE [TIME]   # prints each mesh node's bounds at TIME
+    python3 scripts/blender/gltf_eval.py --positions FILE T1 [T2 ...]
+
+`--positions` prints JSON for scripts/three_check.mjs: every mesh node's world positions
+(all primitives concatenated, x y z flattened) at each time T of the first animation:
+`{"times": [...], "nodes": [{"node": i, "name": ..., "positions": [[...], ...]}]}`.
 """
 
 import base64
@@ -341,7 +346,21 @@ def file_normals(g, node, anim, t):
     return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
 
 
+def positions_json(path, times):
+    """`--positions`: what the file says every mesh node shows at each time (first animation)."""
+    g = Gltf(path)
+    anim = 0 if g.doc.get("animations") else None
+    nodes = []
+    for node in g.mesh_nodes():
+        frames = [g.evaluate(node, anim, t)[0].reshape(-1).tolist() for t in times]
+        nodes.append({"node": node, "name": g.doc["nodes"][node].get("name"), "positions": frames})
+    json.dump({"times": times, "nodes": nodes}, sys.stdout)
+
+
 def main():
+    if sys.argv[1] == "--positions":
+        positions_json(sys.argv[2], [float(t) for t in sys.argv[3:]])
+        return
     g = Gltf(sys.argv[1])
     t = float(sys.argv[2]) if len(sys.argv) > 2 else 0.0
     anim = 0 if g.doc.get("animations") else None

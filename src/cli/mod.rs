@@ -98,7 +98,7 @@ fn run_single(job: Job, quiet: bool) -> anyhow::Result<()> {
         Job::Ik(j) => j.display_name(),
     };
     let bar = progress::bar(job.kind(), job.frames_hint().unwrap_or(1) as u64, quiet);
-    let outcome = run_job(&job, &name, &bar).map_err(|e| match e {
+    let outcome = run_job(&job, &name, &bar, &flag).map_err(|e| match e {
         JobError::Bake(e) => cli_error(e),
         JobError::Other(e) => e,
     })?;
@@ -118,9 +118,20 @@ pub enum JobError {
     Other(anyhow::Error),
 }
 
-/// Bakes one job, moving `bar`; writes its report when asked.
-pub fn run_job(job: &Job, name: &str, bar: &ProgressBar) -> Result<Outcome, JobError> {
+/// Bakes one job, moving `bar`; writes its report when asked. A cloth bake whose output will be
+/// large says so before it starts (parameters named by `vocabulary`), not only when it is done.
+pub fn run_job(
+    job: &Job,
+    name: &str,
+    bar: &ProgressBar,
+    vocabulary: scenebake::param::Vocabulary<'_>,
+) -> Result<Outcome, JobError> {
     let start = std::time::Instant::now();
+    if let Job::Cloth(cloth) = job {
+        if let Ok(Some(w)) = scenebake::bake::cloth::output_size_warning(cloth) {
+            bar.suspend(|| eprintln!("warning: {name}: {}", w.render(vocabulary)));
+        }
+    }
     let report = job.run(&mut |done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);

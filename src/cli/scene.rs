@@ -126,18 +126,19 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                     job.job.frames_hint().unwrap_or(1) as u64,
                     quiet,
                 ));
-                let result = run_job(&job.job, &job.name, &bar).map_err(|e| {
-                    let e = match e {
-                        JobError::Bake(e) => anyhow!("{e}"),
-                        JobError::Other(e) => e,
-                    };
-                    e.context(format!(
-                        "{}: job `{}` ({})",
-                        args.scene.display(),
-                        job.name,
-                        job.job.kind()
-                    ))
-                });
+                let result = run_job(&job.job, &job.name, &bar, &scenebake::param::scene_key)
+                    .map_err(|e| {
+                        let e = match e {
+                            JobError::Bake(e) => anyhow!("{e}"),
+                            JobError::Other(e) => e,
+                        };
+                        e.context(format!(
+                            "{}: job `{}` ({})",
+                            args.scene.display(),
+                            job.name,
+                            job.job.kind()
+                        ))
+                    });
                 multi.remove(&bar);
                 match &result {
                     Ok(outcome) => {

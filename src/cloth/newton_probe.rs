@@ -75,7 +75,7 @@ fn probe() {
     let cap: usize = env("PROBE_CAP", 50);
     let mut job = ClothJob::new(ClothSource::File(root.join(&mesh)), "unused.glb".into());
     if collider != "none" {
-        job.collider = vec![ColliderSpec::Mesh(root.join(&collider))];
+        job.collider = vec![ColliderSpec::mesh(root.join(&collider))];
     }
     if let Ok(b) = std::env::var("PROBE_BEND") {
         job.bend = Some(b.parse().unwrap());

@@ -1227,6 +1227,10 @@ fn write(
     let weights: Vec<f32> = keys.iter().flat_map(|&k| c.weights[k].clone()).collect();
     push_weights_animation(&mut b, node, &keys, &weights, options);
     bytes.animation = (b.buffer_len() - start) as u64;
+    super::playback::stamp(
+        &mut b.root,
+        &super::playback::Playback::frames(options.fps, frames.frame_count(), &options.name),
+    );
     if c.quantized || normals_i8 {
         b.root.extensions_used.push(KHR_MESH_QUANTIZATION.into());
         b.root

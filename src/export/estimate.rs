@@ -97,6 +97,20 @@ mod tests {
         assert!(check_frames(50_000, 961, true).unwrap().is_some());
     }
 
+    /// The trial run's trap: `--frames 20000` on an 8k-vertex skirt wrote gigabytes silently.
+    /// 20,001 frames × 8,121 vertices × 24 bytes = 3,898,274,904 bytes: under the GLB limit, over
+    /// the warning threshold.
+    #[test]
+    fn twenty_thousand_frames_of_a_skirt_warn_with_the_size() {
+        assert_eq!(morph_bytes(8121, 20_001, true), 3_898_274_904);
+        let warning = check_frames(20_000, 8121, true).unwrap().unwrap();
+        assert_eq!(
+            warning.render(&|p| format!("--{}", p.key().replace('_', "-"))),
+            "the output will be about 3.9 GB (20000 frames of 8121 vertices); \
+             --keyframe-tolerance can shrink it"
+        );
+    }
+
     #[test]
     fn sizes_read_in_decimal_units() {
         assert_eq!(human(999), "999 B");

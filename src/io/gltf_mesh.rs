@@ -50,7 +50,16 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
             .ok_or_else(|| Error::invalid(path, "the file contains no mesh"))?,
     };
     let transform = world_transform_of_mesh(&doc, gmesh.index());
+    read_mesh(path, &buffers, gmesh, transform)
+}
 
+/// Mesh `gmesh`'s triangle primitives as one body, placed by `transform`.
+fn read_mesh(
+    path: &Path,
+    buffers: &[Vec<u8>],
+    gmesh: gltf::Mesh<'_>,
+    transform: DMat4,
+) -> Result<Mesh> {
     let mut mesh = Mesh {
         name: path.display().to_string(),
         ..Default::default()
@@ -138,6 +147,101 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
         ));
     }
     Ok(mesh)
+}
+
+/// Reads the triangles of a glTF file as a mesh collider (`--collider mesh:FILE.glb[#NAME]`), in
+/// world space (each mesh placed by the node that instantiates it).
+///
+/// With `part`, only the node of that name (when it has a mesh), else the mesh of that name;
+/// without, every mesh node of the default scene (or of the first scene), merged into one
+/// triangle set, as an OBJ collider takes every object.
+///
+/// # Errors
+/// As [`load_gltf_mesh`]; [`Error::Param`] naming `--collider` with the file and the names it
+/// holds when `part` names nothing.
+pub fn load_gltf_collider(path: &Path, part: Option<&str>) -> Result<Mesh> {
+    let (doc, buffers) = import_gltf(path)?;
+    let placed = mesh_nodes(&doc);
+    let chosen: Vec<(gltf::Mesh<'_>, DMat4)> = match part {
+        Some(name) => {
+            if let Some((_, m, t)) = placed.iter().find(|(n, _, _)| n.name() == Some(name)) {
+                vec![(m.clone(), *t)]
+            } else if let Some(m) = doc.meshes().find(|m| m.name() == Some(name)) {
+                let t = world_transform_of_mesh(&doc, m.index());
+                vec![(m, t)]
+            } else {
+                let named = |names: Vec<Option<&str>>| {
+                    let mut v: Vec<String> =
+                        names.into_iter().flatten().map(str::to_owned).collect();
+                    v.dedup();
+                    if v.is_empty() {
+                        "none named".to_owned()
+                    } else {
+                        v.join(", ")
+                    }
+                };
+                return Err(Error::param_value(
+                    Param::Collider,
+                    format!(
+                        "{}: no mesh or mesh node named `{name}` (meshes: {}; nodes with a mesh: {})",
+                        path.display(),
+                        named(doc.meshes().map(|m| m.name()).collect()),
+                        named(placed.iter().map(|(n, _, _)| n.name()).collect()),
+                    ),
+                ));
+            }
+        }
+        None if !placed.is_empty() => placed.into_iter().map(|(_, m, t)| (m, t)).collect(),
+        None => doc.meshes().map(|m| (m, DMat4::IDENTITY)).collect(),
+    };
+    if chosen.is_empty() {
+        return Err(Error::invalid(path, "the file contains no mesh"));
+    }
+    let mut all = Mesh {
+        name: path.display().to_string(),
+        ..Default::default()
+    };
+    for (gmesh, transform) in chosen {
+        let mesh = read_mesh(path, &buffers, gmesh, transform)?;
+        let base = all.positions.len() as u32;
+        all.positions.extend(mesh.positions);
+        all.triangles
+            .extend(mesh.triangles.iter().map(|t| t.map(|i| i + base)));
+        all.warnings.extend(mesh.warnings);
+    }
+    all.file_index = (0..all.positions.len() as u32).collect();
+    Ok(all)
+}
+
+/// Every node of the default scene (else the first scene) that has a mesh, with its world
+/// transform, in depth-first order.
+fn mesh_nodes(doc: &gltf::Document) -> Vec<(gltf::Node<'_>, gltf::Mesh<'_>, DMat4)> {
+    fn visit<'a>(
+        node: gltf::Node<'a>,
+        parent: DMat4,
+        seen: &mut [bool],
+        out: &mut Vec<(gltf::Node<'a>, gltf::Mesh<'a>, DMat4)>,
+    ) {
+        // The gltf crate checks indices, not cycles or shared children: each node once.
+        if std::mem::replace(&mut seen[node.index()], true) {
+            return;
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix()).as_dmat4();
+        if let Some(m) = node.mesh() {
+            out.push((node.clone(), m, world));
+        }
+        for c in node.children() {
+            visit(c, world, seen, out);
+        }
+    }
+    let mut out = Vec::new();
+    let mut seen = vec![false; doc.nodes().len()];
+    if let Some(scene) = doc.default_scene().or_else(|| doc.scenes().next()) {
+        for n in scene.nodes() {
+            visit(n, DMat4::IDENTITY, &mut seen, &mut out);
+        }
+    }
+    out
 }
 
 /// World transform of the first node (in any scene) that instantiates mesh `mesh_index`;

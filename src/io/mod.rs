@@ -1,5 +1,6 @@
 //! Readers for input files.
 
+pub mod collider;
 pub mod drawing;
 pub mod gltf_import;
 pub mod gltf_mesh;

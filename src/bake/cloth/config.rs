@@ -274,14 +274,16 @@ pub struct ClothJob {
     #[cfg_attr(feature = "cli", arg(long, value_name = "X,Y,Z", value_parser = crate::spec::vec3_value, allow_hyphen_values = true))]
     pub translate: Option<DVec3>,
     /// The input file's up axis: z turns a Z-up file (Blender, many OBJ exporters) to glTF's
-    /// Y-up, (x, y, z) → (x, z, −y), before --scale and --translate; pins, colliders and
-    /// --gravity are in the turned (Y-up) coordinates.
+    /// Y-up, (x, y, z) → (x, z, −y), before --scale and --translate; mesh collider files are
+    /// turned the same way; pins, the other colliders and --gravity are in the turned (Y-up)
+    /// coordinates.
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = UpAxis::Y))]
     pub up: UpAxis,
     /// A static collider (repeatable): plane:NX,NY,NZ,D (the half-space n·x ≤ D is solid, e.g.
     /// plane:0,1,0,0 is the ground y = 0), sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1, or
-    /// mesh:FILE.obj (closed meshes are solid, open ones two-sided). Written into the glTF as
-    /// static meshes.
+    /// mesh:FILE[#NAME] (an .obj, .gltf or .glb; #NAME keeps one OBJ object or group, or one
+    /// glTF mesh node or mesh; closed meshes are solid, open ones two-sided). Written into the
+    /// glTF as static meshes.
     #[serde(deserialize_with = "de::spec_list")]
     #[cfg_attr(feature = "cli", arg(long = "collider", value_name = "SPEC", value_parser = crate::spec::parsed_value::<ColliderSpec>, allow_hyphen_values = true))]
     pub collider: Vec<ColliderSpec>,

@@ -31,7 +31,7 @@ use crate::export::morph::{check_cache, encode_morph_gltf};
 use crate::export::vat::{encode_vat, vat_paths};
 use crate::export::{BasisOptions, QuantizeMode};
 use crate::export::{MorphOptions, RenderFrames, VatOptions, Written};
-use crate::io::{gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
+use crate::io::{collider, gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
 use crate::mesh::Mesh;
 use crate::param::{Param, Text};
 use crate::spec::{non_negative, positive};
@@ -376,8 +376,15 @@ fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
         .collider
         .iter()
         .map(|spec| {
-            Collider::from_spec(spec, &|path| {
-                let mesh = obj::load_obj(path, &obj::ObjOptions::default())?;
+            Collider::from_spec(spec, &|path, part| {
+                let mut mesh = collider::load_collider_mesh(path, part)?;
+                // A collider file comes from the same tool as the input: turned by --up too
+                // (not placed by --scale/--translate: colliders are in the scene's coordinates).
+                if job.up_z() {
+                    for p in &mut mesh.positions {
+                        *p = DVec3::new(p.x, p.z, -p.y);
+                    }
+                }
                 MeshCollider::from_mesh(path, mesh.positions, mesh.triangles)
             })
         })
@@ -545,6 +552,28 @@ pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
             "unknown mesh format: expected .obj, .gltf, .glb or .tet",
         )),
     }
+}
+
+/// The output-size warning [`prepare_cloth`] also gives (a dense cache over 1 GiB), computed
+/// before anything is simulated so that a front end can show it before a long bake; it loads the
+/// input once more. `None` below the threshold, and when the input or the preset's resolution is
+/// invalid ([`prepare_cloth`] reports those).
+///
+/// # Errors
+/// [`Error::Param`] naming `--frames` when the cache would not fit in a GLB, as [`prepare_cloth`].
+pub fn output_size_warning(job: &ClothJob) -> Result<Option<Text>> {
+    let frames = job.frames.unwrap_or(defaults::FRAMES).max(1);
+    let vertices = match job.source() {
+        Ok(ClothSource::LabCloth { resolution }) if (1..=2000).contains(&resolution) => {
+            (resolution as usize + 1).pow(2)
+        }
+        Ok(ClothSource::File(path)) => match load_body(&path, job) {
+            Ok(mesh) => mesh.render_vertices.len(),
+            Err(_) => return Ok(None),
+        },
+        _ => return Ok(None),
+    };
+    crate::export::estimate::check_frames(frames, vertices, job.normals == Switch::On)
 }
 
 /// `--basis-tolerance` when neither it nor `--keyframe-tolerance` is given: 1 mm.

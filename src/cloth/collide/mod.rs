@@ -42,8 +42,51 @@ pub enum ColliderSpec {
     Sphere(DVec3, f64),
     /// `box:X0,Y0,Z0,X1,Y1,Z1` (corners in either order).
     Box(DVec3, DVec3),
-    /// `mesh:FILE.obj`: a static triangle mesh.
-    Mesh(PathBuf),
+    /// `mesh:FILE[#NAME]`: a static triangle mesh from an OBJ, glTF or GLB file; `part` keeps
+    /// only one of its objects (an OBJ's `o`/`g` name, a glTF's mesh or mesh node name).
+    Mesh {
+        /// The mesh file.
+        path: PathBuf,
+        /// The object of the file to use (every object when `None`).
+        part: Option<String>,
+    },
+}
+
+impl ColliderSpec {
+    /// `mesh:PATH`: every object of a mesh file.
+    pub fn mesh(path: impl Into<PathBuf>) -> Self {
+        ColliderSpec::Mesh {
+            path: path.into(),
+            part: None,
+        }
+    }
+}
+
+/// Splits `FILE#NAME` at its last `#` when FILE names a mesh file (.obj, .gltf, .glb); a `#`
+/// elsewhere stays part of the file name.
+fn split_mesh_part(rest: &str) -> std::result::Result<(PathBuf, Option<String>), String> {
+    let rest = rest.trim();
+    if let Some((file, part)) = rest.rsplit_once('#') {
+        let ext = std::path::Path::new(file)
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if matches!(ext.as_deref(), Some("obj" | "gltf" | "glb")) {
+            if file.trim().is_empty() {
+                return Err("the mesh file name is empty".into());
+            }
+            let part = part.trim();
+            if part.is_empty() {
+                return Err(format!(
+                    "the object name after `#` is empty (mesh:{file}#NAME, or mesh:{file} for every object)"
+                ));
+            }
+            return Ok((PathBuf::from(file.trim()), Some(part.to_owned())));
+        }
+    }
+    if rest.is_empty() {
+        return Err("the mesh file name is empty".into());
+    }
+    Ok((PathBuf::from(rest), None))
 }
 
 impl FromStr for ColliderSpec {
@@ -51,7 +94,7 @@ impl FromStr for ColliderSpec {
 
     fn from_str(s: &str) -> Result<Self> {
         const FORMS: &str =
-            "plane:NX,NY,NZ,D, sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or mesh:FILE.obj";
+            "plane:NX,NY,NZ,D, sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or mesh:FILE[#NAME]";
         let bad = |m: String| Error::param_value(Param::Collider, format!("`{s}`: {m}"));
         let (kind, rest) = s
             .split_once(':')
@@ -80,8 +123,10 @@ impl FromStr for ColliderSpec {
                 }
                 Ok(ColliderSpec::Box(a.min(b), a.max(b)))
             }
-            "mesh" if !rest.trim().is_empty() => Ok(ColliderSpec::Mesh(PathBuf::from(rest.trim()))),
-            "mesh" => Err(bad("the mesh file name is empty".into())),
+            "mesh" => {
+                let (path, part) = split_mesh_part(rest).map_err(bad)?;
+                Ok(ColliderSpec::Mesh { path, part })
+            }
             other => Err(bad(format!(
                 "unknown collider kind `{other}` (use {FORMS})"
             ))),
@@ -131,14 +176,14 @@ impl PartialEq for Collider {
 }
 
 impl Collider {
-    /// Builds the collider a spec names; `load_mesh` reads a mesh collider's file (the caller's
-    /// loader: file reading lives in [`crate::io`]).
+    /// Builds the collider a spec names; `load_mesh` reads a mesh collider's file and the part
+    /// of it the spec names (the caller's loader: file reading lives in [`crate::io`]).
     ///
     /// # Errors
     /// The mesh loader's errors, naming the file.
     pub fn from_spec(
         spec: &ColliderSpec,
-        load_mesh: &dyn Fn(&std::path::Path) -> Result<MeshCollider>,
+        load_mesh: &dyn Fn(&std::path::Path, Option<&str>) -> Result<MeshCollider>,
     ) -> Result<Self> {
         Ok(match spec {
             ColliderSpec::Plane(n, d) => {
@@ -154,7 +199,9 @@ impl Collider {
                 min: *min,
                 max: *max,
             }),
-            ColliderSpec::Mesh(path) => Collider::Mesh(Arc::new(load_mesh(path)?)),
+            ColliderSpec::Mesh { path, part } => {
+                Collider::Mesh(Arc::new(load_mesh(path, part.as_deref())?))
+            }
         })
     }
 
