@@ -114,9 +114,14 @@ async function main() {
   });
   controls.addEventListener('change', () => renderer.render(scene, camera));
 
-  // Frame the camera on the first shown frame (the same for a VAT and its glTF).
-  bake.setFrame(current);
-  frame(bake.positions());
+  // Frame the camera on the first, middle and last frames (the same for a VAT and its glTF).
+  const framing = [];
+  const middle = Math.round((bake.frameStart + bake.frameEnd) / 2);
+  for (const f of new Set([bake.frameStart, middle, bake.frameEnd])) {
+    bake.setFrame(f);
+    framing.push(...bake.positions());
+  }
+  frame(framing);
   show(current);
   setPlaying(playing);
 
