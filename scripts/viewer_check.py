@@ -220,7 +220,9 @@ def main():
                 differ = float(np.mean(np.max(np.abs(a - b), axis=2) > 8))
                 ok = differ <= args.pixels
                 print(f"{'ok  ' if ok else 'FAIL'} {name} frame {frame}: {100 * differ:.3f} % of "
-                      f"{a.shape[1]}×{a.shape[0]} pixels differ from {manifest['gltf']}'s")
+                      f"{a.shape[1]}×{a.shape[0]} pixels differ from {manifest['gltf']}'s by more "
+                      f"than 8/255 (largest difference {int(np.max(np.abs(a - b)))}/255, "
+                      f"{100 * float(np.mean(np.any(a != b, axis=2))):.3f} % not identical)")
                 if not ok:
                     failures.append(f"{name} frame {frame} picture")
 

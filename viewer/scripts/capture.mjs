@@ -51,8 +51,18 @@ try {
     const url = `${opts.base}?file=${encodeURIComponent(file)}&frame=${opts.frames[0]}`;
     const started = Date.now();
     messages.length = 0;
-    await page.goto(url, { waitUntil: 'load' });
-    await page.waitForFunction('window.scenebake && window.scenebake.ready', { timeout: 60000 });
+    // Generous timeouts: CI's 2 cores may be busy, and WebGL runs in software here.
+    for (let attempt = 1; ; attempt++) {
+      try {
+        await page.goto(url, { waitUntil: 'load', timeout: 120000 });
+        await page.waitForFunction('window.scenebake && window.scenebake.ready',
+          { timeout: 120000 });
+        break;
+      } catch (e) {
+        if (attempt === 2) throw e;
+        console.error(`${file}: ${e.message}; trying once more`);
+      }
+    }
     const loadMs = Date.now() - started;
     for (const [i, frame] of opts.frames.entries()) {
       const state = await page.evaluate((f, first) => {
