@@ -14,6 +14,9 @@ share no code with scenebake or the viewer:
    lines, uncompressed or ZIP, FLOAT/HALF channels; zlib and numpy only), addressed as
    FILE.json's layout says (frame f, vertex v -> row f * rows_per_frame + v // width, column
    v % width, row 0 at the top), plus the base mesh (frame 0) in offset mode;
+   A glTF compressed with EXT_meshopt_compression is compared with the numpy reading of the
+   same bake written uncompressed (--reference NAME=OTHER): three.js's MeshoptDecoder must
+   restore what the uncompressed file holds;
 3. VAT against its glTF (FILE.json's "gltf") at the same frame, when both were captured: the
    positions, and the pictures (share of pixels whose colour differs by more than 8/255 in any
    channel, at most --pixels).
@@ -165,12 +168,17 @@ def main():
     ap.add_argument("--dir", required=True, help="the folder the captured /file/NAME are in")
     ap.add_argument("--tolerance", type=float, default=1e-5)
     ap.add_argument("--relative", type=float, default=1e-6)
+    ap.add_argument("--reference", action="append", default=[], metavar="NAME=OTHER",
+                    help="read glTF NAME's expected positions from OTHER (NAME is compressed "
+                         "with EXT_meshopt_compression, which the numpy reader does not decode; "
+                         "OTHER is the same bake uncompressed)")
     ap.add_argument("--pixels", type=float, default=0.01,
                     help="largest share of differing pixels between a VAT and its glTF")
     args = ap.parse_args()
     records = json.load(open(args.capture))
     failures, worst, checked = [], 0.0, 0
     by_key = {(os.path.basename(r["file"]), r["frame"]): r for r in records}
+    references = dict(r.split("=", 1) for r in args.reference)
 
     def report(label, dist, ref):
         nonlocal worst, checked
@@ -189,7 +197,9 @@ def main():
         path = os.path.join(args.dir, name)
         shown = {m["node"]: np.array(m["positions"]).reshape(-1, 3) for m in rec["meshes"]}
         if rec["kind"] == "gltf":
-            g = gltf_eval.Gltf(path)
+            g = gltf_eval.Gltf(os.path.join(args.dir, references.get(name, name)))
+            if name in references:
+                name = f"{name} (expected from {references[name]})"
             anim, fps = animation_and_fps(g)
             for node in g.mesh_nodes():
                 mode = g.doc["meshes"][g.doc["nodes"][node]["mesh"]]["primitives"][0].get("mode", 4)

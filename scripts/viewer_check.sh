@@ -5,8 +5,9 @@
 #
 # Bakes one small cloth (the lab cloth, 30 frames) several ways into a temporary folder: a glTF
 # morph cache with its VAT (absolute positions), the same bake with an offset VAT, with a VAT
-# wrapped onto 3 rows a frame (--vat-max-width 50), and as a quantised morph basis; plus an IK
-# rig (the Fox, skinned). `scenebake view` serves them; viewer/scripts/capture.mjs opens
+# wrapped onto 3 rows a frame (--vat-max-width 50), as a quantised morph basis, and compressed
+# with EXT_meshopt_compression (checked against the uncompressed file); plus an IK rig (the Fox,
+# skinned). `scenebake view` serves them; viewer/scripts/capture.mjs opens
 # index.html?file=F&frame=N in Debian's chromium (puppeteer-core) at several frames and records
 # the positions the viewer evaluates and the picture it draws; scripts/viewer_check.py compares
 # them with gltf_eval.py (numpy) and its own EXR reader, and each VAT with its glTF.
@@ -49,6 +50,7 @@ lab=(--preset lab-cloth --frames 30 -q)
 "$scenebake" cloth "${lab[@]}" -o "$dir/lab_offset.glb" --vat "$dir/lab_offset.exr" --vat-mode offset
 "$scenebake" cloth "${lab[@]}" -o "$dir/lab_wrap.glb" --vat "$dir/lab_wrap.exr" --vat-max-width 50
 "$scenebake" cloth "${lab[@]}" -o "$dir/lab_basis.glb" --basis auto --quantize on
+"$scenebake" cloth "${lab[@]}" -o "$dir/lab_meshopt.glb" --compress meshopt
 "$scenebake" ik -q --rig meshes/Fox.glb --chain b_Spine01_02..b_Head_05 --curve heart \
     -o "$dir/fox.glb"
 
@@ -66,8 +68,9 @@ serve() {
 serve "$dir/lab.glb"
 node viewer/scripts/capture.mjs --base "$base" --out "$dir/capture.json" --frames 0,7,15,30 \
     file/lab.glb file/lab.json file/lab_offset.glb file/lab_offset.json \
-    file/lab_wrap.glb file/lab_wrap.json file/lab_basis.glb file/fox.glb
-"$python" scripts/viewer_check.py "$dir/capture.json" --dir "$dir"
+    file/lab_wrap.glb file/lab_wrap.json file/lab_basis.glb file/lab_meshopt.glb file/fox.glb
+"$python" scripts/viewer_check.py "$dir/capture.json" --dir "$dir" \
+    --reference lab_meshopt.glb=lab.glb
 kill "$server"
 server=""
 
