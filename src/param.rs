@@ -108,6 +108,8 @@ params! {
     MaxTargets => "max_targets",
     /// Quantised attributes.
     Quantize => "quantize",
+    /// Engine-side compression of the glTF.
+    Compress => "compress",
     /// Scale of the input.
     Scale => "scale",
     /// Offset of the input.

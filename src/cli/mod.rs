@@ -8,6 +8,7 @@ pub mod interrupt;
 pub mod open;
 pub mod progress;
 pub mod scene;
+pub mod view;
 
 use std::path::{Path, PathBuf};
 
@@ -43,6 +44,8 @@ pub enum Command {
     /// Open a bake in Blender, set up to play it (fps, frame range, smooth shading, the bake's
     /// action, a camera).
     Open(open::OpenArgs),
+    /// Play a bake in the browser (glTF, or a VAT's .json): serves the built-in viewer locally.
+    View(view::ViewArgs),
 }
 
 /// One finished job, for summaries.
@@ -88,6 +91,7 @@ pub fn execute(cli: &Cli) -> anyhow::Result<()> {
         Command::Run(args) => scene::run(args, cli.quiet),
         Command::Inspect(args) => inspect::run(args),
         Command::Open(args) => open::run(args),
+        Command::View(args) => view::run(args),
     }
 }
 

@@ -13,7 +13,7 @@ use crate::cloth::pins::PinSpec;
 use crate::cloth::SolverKind;
 use crate::error::{Error, Result};
 use crate::export::vat::DEFAULT_MAX_WIDTH;
-use crate::export::{BasisSize, Interpolation, QuantizeMode, SparseMode, VatMode};
+use crate::export::{BasisSize, Compression, Interpolation, QuantizeMode, SparseMode, VatMode};
 use crate::param::Param;
 use crate::spec::de;
 
@@ -265,6 +265,11 @@ pub struct ClothJob {
     /// stays within --basis-tolerance [default: auto with --basis].
     #[cfg_attr(feature = "cli", arg(long, value_enum, value_name = "MODE"))]
     pub quantize: Option<QuantizeMode>,
+    /// Engine-side compression: meshopt writes EXT_meshopt_compression (smaller files for
+    /// three.js, Babylon.js and engines with a meshopt decoder; Blender's importer cannot read
+    /// it, so keep `none` for Blender).
+    #[cfg_attr(feature = "cli", arg(long, value_enum, value_name = "METHOD", default_value_t = Compression::None))]
+    pub compress: Compression,
     /// Scale the input file about its origin by S (before --translate; not for presets).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = 1.0, value_name = "S"))]
     pub scale: f64,
@@ -414,6 +419,7 @@ impl Default for ClothJob {
             basis_tolerance: None,
             max_targets: None,
             quantize: None,
+            compress: Compression::None,
             scale: 1.0,
             translate: None,
             up: UpAxis::Y,

@@ -27,9 +27,10 @@ use crate::cloth::{
 };
 use crate::error::{Error, Result};
 use crate::export::basis::encode_basis_gltf;
+use crate::export::meshopt::compress_files;
 use crate::export::morph::{check_cache, encode_morph_gltf};
 use crate::export::vat::{encode_vat, vat_paths};
-use crate::export::{BasisOptions, QuantizeMode};
+use crate::export::{BasisOptions, Compression, QuantizeMode};
 use crate::export::{MorphOptions, RenderFrames, VatOptions, Written};
 use crate::io::{collider, gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
 use crate::mesh::Mesh;
@@ -708,8 +709,11 @@ fn export(
             (morph, None)
         }
     };
-    let gltf_bytes = morph.files.iter().map(|(_, b)| b.len() as u64).sum();
-    let mut files = morph.files;
+    let mut files = match job.compress {
+        Compression::None => morph.files,
+        Compression::Meshopt => compress_files(&job.output, morph.files)?,
+    };
+    let gltf_bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
     let vat = match &job.vat {
         Some(path) => {
             let gltf = job
