@@ -2,6 +2,7 @@
 //! positions, static meshes (colliders), and joint chains with their poses. `cloth` and `ik`
 //! produce them, `export` writes them; neither side imports the other.
 
+pub mod animation;
 pub mod chain;
 pub mod frames;
 pub mod statics;

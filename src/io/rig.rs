@@ -7,10 +7,11 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::{DAffine3, DMat4, DQuat, DVec3};
+use glam::{DAffine3, DMat4, DQuat, DVec3, DVec4};
 use gltf_json as json;
 use json::validation::USize64;
 
+use crate::data::animation::{Clip, Interpolation, Property, Skeleton, SkinnedMesh, Track, Trs};
 use crate::data::chain::{Chain, Joint};
 use crate::error::{Error, Result};
 use crate::param::Param;
@@ -273,4 +274,272 @@ fn node_trs(n: &json::Node) -> (DVec3, DQuat, DVec3) {
         .scale
         .map_or(DVec3::ONE, |s| DVec3::from_array(s.map(f64::from)));
     (s, r, t)
+}
+
+impl RigDocument {
+    /// The document as a `gltf::Document` whose buffer 0 is [`Self::bin`] (for the gltf crate's
+    /// accessor readers).
+    fn document(&self) -> Result<gltf::Document> {
+        let mut root = self.root.clone();
+        root.buffers = vec![json::Buffer {
+            byte_length: USize64::from(self.bin.len()),
+            name: None,
+            uri: None,
+            extensions: None,
+            extras: Default::default(),
+        }];
+        gltf::Document::from_json(root).map_err(|source| Error::Gltf {
+            path: self.path.clone(),
+            source,
+        })
+    }
+
+    /// The node hierarchy with each node's own transform.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] when the hierarchy has a cycle.
+    pub fn skeleton(&self) -> Result<Skeleton> {
+        let rest_affine: Vec<DAffine3> = (0..self.root.nodes.len())
+            .map(|i| self.local_transform(i))
+            .collect();
+        let rest = self
+            .root
+            .nodes
+            .iter()
+            .zip(&rest_affine)
+            .map(|(n, a)| {
+                let (scale, rotation, translation) = match n.matrix {
+                    Some(_) => a.to_scale_rotation_translation(),
+                    None => node_trs(n),
+                };
+                Trs {
+                    translation,
+                    rotation,
+                    scale,
+                }
+            })
+            .collect();
+        Skeleton::new(self.parents(), rest, rest_affine)
+            .ok_or_else(|| Error::invalid(&self.path, "the node hierarchy has a cycle"))
+    }
+
+    /// Names of the document's animations (`#N` for an unnamed one).
+    pub fn animation_names(&self) -> Vec<String> {
+        self.root
+            .animations
+            .iter()
+            .enumerate()
+            .map(|(i, a)| a.name.clone().unwrap_or_else(|| format!("#{i}")))
+            .collect()
+    }
+
+    /// The animation named `spec` (a name, or `#N` for the N-th), read whole. `param` is the
+    /// option that named it (for the error).
+    ///
+    /// # Errors
+    /// [`Error::Param`] naming the animations there are when none matches; [`Error::Gltf`] for
+    /// an unreadable channel.
+    pub fn clip(&self, spec: &str, param: Param) -> Result<Clip> {
+        let names = self.animation_names();
+        let index = match spec.strip_prefix('#').map(str::parse::<usize>) {
+            Some(Ok(i)) if i < names.len() => Some(i),
+            Some(_) => None,
+            None => names.iter().position(|n| n == spec),
+        };
+        let Some(index) = index else {
+            let have = if names.is_empty() {
+                "it has no animations".to_owned()
+            } else {
+                format!(
+                    "it has {}",
+                    names
+                        .iter()
+                        .enumerate()
+                        .map(|(i, n)| format!("#{i} `{n}`"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            };
+            return Err(Error::param_value(
+                param,
+                format!("{}: no animation `{spec}` ({have})", self.path.display()),
+            ));
+        };
+        let doc = self.document()?;
+        let anim = doc
+            .animations()
+            .nth(index)
+            .expect("index checked against the animation list");
+        let bad =
+            |m: String| Error::invalid(&self.path, format!("animation `{}`: {m}", names[index]));
+        let mut tracks = Vec::new();
+        for (c, ch) in anim.channels().enumerate() {
+            let reader = ch.reader(|_| Some(&self.bin[..]));
+            let times: Vec<f64> = reader
+                .read_inputs()
+                .ok_or_else(|| bad(format!("channel {c} has no key times")))?
+                .map(f64::from)
+                .collect();
+            let f = |v: &[f32]| {
+                DVec4::new(
+                    v[0].into(),
+                    v[1].into(),
+                    v[2].into(),
+                    v.get(3).copied().unwrap_or(0.0).into(),
+                )
+            };
+            let (property, values): (Property, Vec<DVec4>) = match reader.read_outputs() {
+                Some(gltf::animation::util::ReadOutputs::Translations(it)) => {
+                    (Property::Translation, it.map(|v| f(&v)).collect())
+                }
+                Some(gltf::animation::util::ReadOutputs::Scales(it)) => {
+                    (Property::Scale, it.map(|v| f(&v)).collect())
+                }
+                Some(gltf::animation::util::ReadOutputs::Rotations(it)) => {
+                    (Property::Rotation, it.into_f32().map(|v| f(&v)).collect())
+                }
+                // Morph weights do not move nodes.
+                Some(gltf::animation::util::ReadOutputs::MorphTargetWeights(_)) => continue,
+                None => return Err(bad(format!("channel {c} has no values"))),
+            };
+            let interpolation = match ch.sampler().interpolation() {
+                gltf::animation::Interpolation::Step => Interpolation::Step,
+                gltf::animation::Interpolation::Linear => Interpolation::Linear,
+                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+            };
+            let per_key = if interpolation == Interpolation::CubicSpline {
+                3
+            } else {
+                1
+            };
+            if times.is_empty()
+                || values.len() != per_key * times.len()
+                || times.windows(2).any(|w| w[1] <= w[0])
+                || times.iter().any(|t| !t.is_finite())
+            {
+                return Err(bad(format!(
+                    "channel {c} has {} key times (strictly increasing expected) and {} values",
+                    times.len(),
+                    values.len()
+                )));
+            }
+            tracks.push(Track {
+                node: ch.target().node().index(),
+                property,
+                interpolation,
+                times,
+                values,
+            });
+        }
+        Ok(Clip {
+            name: names[index].clone(),
+            index,
+            tracks,
+        })
+    }
+
+    /// Every skinned mesh instance of the document (a node with both a mesh and a skin; its
+    /// triangle primitives merged), with bind-pose positions and joint influences.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] for a skinned primitive without positions, joints or weights, or
+    /// a joint index past the skin's joints.
+    pub fn skinned_meshes(&self) -> Result<Vec<SkinnedMesh>> {
+        let doc = self.document()?;
+        let data = |_: gltf::Buffer<'_>| Some(&self.bin[..]);
+        let mut out = Vec::new();
+        for node in doc.nodes() {
+            let (Some(mesh), Some(skin)) = (node.mesh(), node.skin()) else {
+                continue;
+            };
+            let name = mesh
+                .name()
+                .or(node.name())
+                .map_or_else(|| format!("#{}", node.index()), str::to_owned);
+            let bad = |m: String| Error::invalid(&self.path, format!("skinned mesh `{name}`: {m}"));
+            let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+            let inverse_bind: Vec<DAffine3> = match skin.reader(data).read_inverse_bind_matrices() {
+                Some(it) => it
+                    .map(|m| {
+                        DAffine3::from_mat4(DMat4::from_cols_array_2d(&m.map(|c| c.map(f64::from))))
+                    })
+                    .collect(),
+                None => vec![DAffine3::IDENTITY; joints.len()],
+            };
+            let mut sm = SkinnedMesh {
+                name: name.clone(),
+                positions: Vec::new(),
+                triangles: Vec::new(),
+                joints,
+                inverse_bind,
+                per_vertex: 0,
+                influence_joint: Vec::new(),
+                influence_weight: Vec::new(),
+            };
+            let sets = mesh
+                .primitives()
+                .map(|p| {
+                    p.attributes()
+                        .filter(|(s, _)| matches!(s, gltf::Semantic::Joints(_)))
+                        .count()
+                })
+                .max()
+                .unwrap_or(0);
+            sm.per_vertex = 4 * sets.max(1);
+            for prim in mesh.primitives() {
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    continue;
+                }
+                let r = prim.reader(data);
+                let base = sm.positions.len() as u32;
+                let positions: Vec<DVec3> = r
+                    .read_positions()
+                    .ok_or_else(|| bad("a primitive has no POSITION".into()))?
+                    .map(|p| DVec3::from_array(p.map(f64::from)))
+                    .collect();
+                let n = positions.len();
+                let mut joint_ids = vec![0u16; n * sm.per_vertex];
+                let mut weights = vec![0f32; n * sm.per_vertex];
+                for set in 0..sets as u32 {
+                    let (Some(j), Some(w)) = (r.read_joints(set), r.read_weights(set)) else {
+                        return Err(bad(format!("JOINTS_{set} without WEIGHTS_{set}")));
+                    };
+                    for (v, (j, w)) in j.into_u16().zip(w.into_f32()).enumerate().take(n) {
+                        let at = v * sm.per_vertex + 4 * set as usize;
+                        joint_ids[at..at + 4].copy_from_slice(&j);
+                        weights[at..at + 4].copy_from_slice(&w);
+                    }
+                }
+                if let Some(&j) = joint_ids
+                    .iter()
+                    .zip(&weights)
+                    .find(|(&j, &w)| w != 0.0 && j as usize >= sm.joints.len())
+                    .map(|(j, _)| j)
+                {
+                    return Err(bad(format!(
+                        "joint index {j} past the skin's {} joints",
+                        sm.joints.len()
+                    )));
+                }
+                let idx: Vec<u32> = match r.read_indices() {
+                    Some(i) => i.into_u32().collect(),
+                    None => (0..n as u32).collect(),
+                };
+                if idx.iter().any(|&i| i as usize >= n) {
+                    return Err(bad("an index past the vertex count".into()));
+                }
+                sm.triangles.extend(
+                    idx.chunks_exact(3)
+                        .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+                );
+                sm.positions.extend(positions);
+                sm.influence_joint.extend(joint_ids);
+                sm.influence_weight.extend(weights);
+            }
+            if !sm.positions.is_empty() {
+                out.push(sm);
+            }
+        }
+        Ok(out)
+    }
 }
