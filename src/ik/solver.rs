@@ -181,7 +181,7 @@ pub(crate) fn aim_constrained(chain: &Chain, pose: &mut Pose, desired: &[DVec3],
         let current = pose.rotations[i] * (chain.joints()[i].scale * j1.translation);
         let wanted = inv * (desired[i + 1] - p_i);
         super::chain::rotate_local(&mut pose.rotations[i], current, wanted);
-        if let (Some(Limit::Hinge { axis, min, max }), true) = (c.limit(i + 1), i + 2 < n) {
+        if let (Some(Limit::Hinge { axis, min, max }), true) = (c.hinge(i + 1), i + 2 < n) {
             let frame = parent * chain.local(i, pose.rotations[i]);
             let rest_child = j1.rotation * (j1.scale * chain.joints()[i + 2].translation);
             let bone = desired[i + 1] - p_i;
@@ -198,12 +198,79 @@ pub(crate) fn aim_constrained(chain: &Chain, pose: &mut Pose, desired: &[DVec3],
                 }
             }
         }
-        if let Some(l) = c.limit(i) {
-            constraints::clamp_rotation(chain, i, l, &mut pose.rotations[i]);
-        }
+        c.clamp(chain, i, &mut pose.rotations[i]);
         pose.world[i] = parent * chain.local(i, pose.rotations[i]);
     }
     pose.world[n - 1] = pose.world[n - 2] * chain.local(n - 1, pose.rotations[n - 1]);
+}
+
+/// [`aim_constrained`] choosing the swivel of the inner joints about the root–tip line when a
+/// twist limit is present. A twist-limited joint cannot roll its child's hinge into an arbitrary
+/// bend plane, so the bend plane the passes (or the pole) chose may be out of its reach; other
+/// swivels may not be. The swivel asked for (0) is kept when the limits let the tip land on
+/// `desired`'s tip (within `tolerance / 100`); otherwise swivels of ±5°, ±10° … ±180° are tried,
+/// then ±1° steps around the best: the pose whose tip lands nearest `desired`'s tip wins, ties
+/// going to the smallest swivel.
+pub(crate) fn aim_swivelled(
+    chain: &Chain,
+    pose: &mut Pose,
+    desired: &[DVec3],
+    tolerance: f64,
+    c: &Constraints,
+) {
+    let n = desired.len();
+    let twisted = c
+        .limits
+        .iter()
+        .any(|(_, l)| matches!(l, Limit::Twist { .. }));
+    let axis = (desired[n - 1] - desired[0]).try_normalize();
+    let (true, true, Some(axis)) = (twisted, n >= 3, axis) else {
+        aim_constrained(chain, pose, desired, c);
+        return;
+    };
+    let root = desired[0];
+    let start = pose.clone();
+    let mut trial_p = desired.to_vec();
+    let mut try_swivel = |phi: f64| {
+        let q = glam::DQuat::from_axis_angle(axis, phi);
+        for (t, d) in trial_p[1..n - 1].iter_mut().zip(&desired[1..n - 1]) {
+            *t = root + q * (*d - root);
+        }
+        let mut trial = start.clone();
+        aim_constrained(chain, &mut trial, &trial_p, c);
+        (trial.tip().distance(desired[n - 1]), trial)
+    };
+    let tie = tolerance / 100.0;
+    let better = |e: f64, phi: f64, best: &(f64, f64, Pose)| {
+        e < best.0 - tie || (e <= best.0 + tie && phi.abs() < best.1.abs())
+    };
+    let (e0, p0) = try_swivel(0.0);
+    if e0 <= tie {
+        *pose = p0;
+        return;
+    }
+    let mut best = (e0, 0.0, p0);
+    let step = 5f64.to_radians();
+    for k in 1..=36 {
+        for sign in [1.0, -1.0] {
+            let phi = sign * k as f64 * step;
+            let (e, p) = try_swivel(phi);
+            if better(e, phi, &best) {
+                best = (e, phi, p);
+            }
+        }
+    }
+    let centre = best.1;
+    for k in 1..5 {
+        for sign in [1.0, -1.0] {
+            let phi = centre + sign * k as f64 * step / 5.0;
+            let (e, p) = try_swivel(phi);
+            if better(e, phi, &best) {
+                best = (e, phi, p);
+            }
+        }
+    }
+    *pose = best.2;
 }
 
 /// How a solve starts, shared by every solver.
@@ -259,7 +326,7 @@ pub(crate) fn end(
 }
 
 /// Applies the optional per-frame rotation limit relative to `start`, then the joint limits,
-/// and computes the final report.
+/// then the tip axis, and computes the final report.
 pub(crate) fn finish(
     chain: &Chain,
     pose: &mut Pose,
@@ -273,6 +340,7 @@ pub(crate) fn finish(
         chain.clamp_to(pose, start, max);
     }
     constraints::clamp_all(chain, pose, c);
+    constraints::orient_tip(chain, pose, c);
     let error = pose.tip().distance(target);
     SolveReport {
         iterations,
