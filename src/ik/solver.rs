@@ -167,7 +167,18 @@ pub(crate) fn aim_at_positions(chain: &Chain, pose: &mut Pose, desired: &[DVec3]
 /// own bone so the hinge can bend towards the wanted direction; each joint is clamped to its
 /// limit before the next is aimed.
 pub(crate) fn aim_constrained(chain: &Chain, pose: &mut Pose, desired: &[DVec3], c: &Constraints) {
+    aim_constrained_twist(chain, pose, desired, c);
+}
+
+/// [`aim_constrained`], returning whether a twist limit changed a rotation.
+fn aim_constrained_twist(
+    chain: &Chain,
+    pose: &mut Pose,
+    desired: &[DVec3],
+    c: &Constraints,
+) -> bool {
     let n = chain.len();
+    let mut twist_bound = false;
     for i in 0..n - 1 {
         let parent = if i == 0 {
             chain.base()
@@ -198,19 +209,23 @@ pub(crate) fn aim_constrained(chain: &Chain, pose: &mut Pose, desired: &[DVec3],
                 }
             }
         }
-        c.clamp(chain, i, &mut pose.rotations[i]);
+        for l in c.limits_of(i) {
+            let changed = constraints::clamp_rotation(chain, i, l, &mut pose.rotations[i]);
+            twist_bound |= changed && matches!(l, Limit::Twist { .. });
+        }
         pose.world[i] = parent * chain.local(i, pose.rotations[i]);
     }
     pose.world[n - 1] = pose.world[n - 2] * chain.local(n - 1, pose.rotations[n - 1]);
+    twist_bound
 }
 
 /// [`aim_constrained`] choosing the swivel of the inner joints about the root–tip line when a
-/// twist limit is present. A twist-limited joint cannot roll its child's hinge into an arbitrary
+/// twist limit binds. A twist-limited joint cannot roll its child's hinge into an arbitrary
 /// bend plane, so the bend plane the passes (or the pole) chose may be out of its reach; other
-/// swivels may not be. The swivel asked for (0) is kept when the limits let the tip land on
-/// `desired`'s tip (within `tolerance / 100`); otherwise swivels of ±5°, ±10° … ±180° are tried,
-/// then ±1° steps around the best: the pose whose tip lands nearest `desired`'s tip wins, ties
-/// going to the smallest swivel.
+/// swivels may not be. The swivel asked for (0) is kept when no twist limit changes a rotation or
+/// the limits still let the tip land on `desired`'s tip (within `tolerance / 100`); otherwise
+/// swivels of ±15°, ±30° … ±180° are tried, then ±5° and ±1° steps around the best: the pose
+/// whose tip lands nearest `desired`'s tip wins, ties going to the smallest swivel.
 pub(crate) fn aim_swivelled(
     chain: &Chain,
     pose: &mut Pose,
@@ -219,58 +234,46 @@ pub(crate) fn aim_swivelled(
     c: &Constraints,
 ) {
     let n = desired.len();
-    let twisted = c
-        .limits
-        .iter()
-        .any(|(_, l)| matches!(l, Limit::Twist { .. }));
+    let start = pose.clone();
+    let bound = aim_constrained_twist(chain, pose, desired, c);
+    let tie = tolerance / 100.0;
+    let e0 = pose.tip().distance(desired[n - 1]);
     let axis = (desired[n - 1] - desired[0]).try_normalize();
-    let (true, true, Some(axis)) = (twisted, n >= 3, axis) else {
-        aim_constrained(chain, pose, desired, c);
+    let (true, true, Some(axis)) = (bound && e0 > tie, n >= 3, axis) else {
         return;
     };
     let root = desired[0];
-    let start = pose.clone();
     let mut trial_p = desired.to_vec();
-    let mut try_swivel = |phi: f64| {
+    let mut trial = start.clone();
+    let mut best_pose = pose.clone();
+    let mut best = (e0, 0.0);
+    let mut try_swivel = |phi: f64, best: &mut (f64, f64), best_pose: &mut Pose| {
         let q = glam::DQuat::from_axis_angle(axis, phi);
         for (t, d) in trial_p[1..n - 1].iter_mut().zip(&desired[1..n - 1]) {
             *t = root + q * (*d - root);
         }
-        let mut trial = start.clone();
+        trial.clone_from(&start);
         aim_constrained(chain, &mut trial, &trial_p, c);
-        (trial.tip().distance(desired[n - 1]), trial)
+        let e = trial.tip().distance(desired[n - 1]);
+        if e < best.0 - tie || (e <= best.0 + tie && phi.abs() < best.1.abs()) {
+            *best = (e, phi);
+            best_pose.clone_from(&trial);
+        }
     };
-    let tie = tolerance / 100.0;
-    let better = |e: f64, phi: f64, best: &(f64, f64, Pose)| {
-        e < best.0 - tie || (e <= best.0 + tie && phi.abs() < best.1.abs())
-    };
-    let (e0, p0) = try_swivel(0.0);
-    if e0 <= tie {
-        *pose = p0;
-        return;
-    }
-    let mut best = (e0, 0.0, p0);
-    let step = 5f64.to_radians();
-    for k in 1..=36 {
-        for sign in [1.0, -1.0] {
-            let phi = sign * k as f64 * step;
-            let (e, p) = try_swivel(phi);
-            if better(e, phi, &best) {
-                best = (e, phi, p);
+    for step in [15.0, 5.0, 1.0f64] {
+        let centre = best.1;
+        let count = if step == 15.0 { 12 } else { 2 };
+        for k in 1..=count {
+            for sign in [1.0, -1.0] {
+                try_swivel(
+                    centre + sign * (k as f64 * step).to_radians(),
+                    &mut best,
+                    &mut best_pose,
+                );
             }
         }
     }
-    let centre = best.1;
-    for k in 1..5 {
-        for sign in [1.0, -1.0] {
-            let phi = centre + sign * k as f64 * step / 5.0;
-            let (e, p) = try_swivel(phi);
-            if better(e, phi, &best) {
-                best = (e, phi, p);
-            }
-        }
-    }
-    *pose = best.2;
+    *pose = best_pose;
 }
 
 /// How a solve starts, shared by every solver.
