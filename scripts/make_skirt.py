@@ -121,7 +121,13 @@ def main(argv=None):
     ap.add_argument("--out", default="meshes/garments/circle_skirt.obj")
     ap.add_argument("--vertices", type=int, default=8000, help="target vertex count")
     ap.add_argument("--seed", type=int, default=12)
+    ap.add_argument("--waist-radius", type=float, default=WAIST_R, help="metres (default 0.156)")
+    ap.add_argument("--waist-y", type=float, default=WAIST_Y, help="metres (default 1.0)")
+    ap.add_argument("--hem-radius", type=float, default=HEM_R, help="metres (default 0.45)")
+    ap.add_argument("--hem-y", type=float, default=HEM_Y, help="metres (default 0.65)")
     args = ap.parse_args(argv)
+    globals().update(WAIST_R=args.waist_radius, WAIST_Y=args.waist_y, HEM_R=args.hem_radius,
+                     HEM_Y=args.hem_y)
     if args.vertices < 100:
         ap.error("--vertices must be at least 100")
     verts, faces = build(args.vertices, args.seed)
@@ -130,7 +136,8 @@ def main(argv=None):
         f.write("# Circle skirt made by scripts/make_skirt.py (scenebake, CC0 1.0).\n")
         f.write(
             f"# --vertices {args.vertices} --seed {args.seed}: {len(verts)} v, {len(faces)} triangles. "
-            f"Metres, Y up: waist ring r = {WAIST_R} at y = {WAIST_Y}, hem ring r = {HEM_R} at y = {HEM_Y}.\n"
+            f"Metres, Y up: waist ring r = {args.waist_radius} at y = {args.waist_y}, "
+            f"hem ring r = {args.hem_radius} at y = {args.hem_y}.\n"
         )
         f.write("o circle_skirt\n")
         for x, y, z in verts:

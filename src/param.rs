@@ -130,6 +130,22 @@ params! {
     Turbulence => "turbulence",
     /// Random seed.
     Seed => "seed",
+    /// The animation of a rig that drives a cloth bake.
+    Animation => "animation",
+    /// Loops of the driving animation exported.
+    Cycles => "cycles",
+    /// Loops of the driving animation simulated and discarded first.
+    WarmupCycles => "warmup_cycles",
+    /// Seconds blending from the rig's rest pose into its animation.
+    BlendIn => "blend_in",
+    /// The joint the pins ride.
+    PinTo => "pin_to",
+    /// Whether the character's body is a collider.
+    BodyCollider => "body_collider",
+    /// Write the garment alone.
+    GarmentOnly => "garment_only",
+    /// Metres per unit of the rig.
+    RigScale => "rig_scale",
     /// Joints of a generated chain.
     Joints => "joints",
     /// Length of a generated chain.

@@ -340,6 +340,7 @@ pub fn fields_of<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
 fn resolve_cloth(job: &mut ClothJob, dir: &Path) {
     let at = |p: &Path| lexically_normal(&dir.join(p));
     job.input = job.input.as_deref().map(at);
+    job.rig = job.rig.as_deref().map(at);
     job.output = at(&job.output);
     job.report = job.report.as_deref().map(at);
     job.vat = job.vat.as_deref().map(at);

@@ -23,11 +23,12 @@ use glam::DVec3;
 use sprs::CsMat;
 
 use super::collide::contact::{self, Hold};
-use super::collide::{Colliders, SurfacePoint};
+use super::collide::{Collider, Colliders, SurfacePoint};
 use super::factor::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
 use super::system::{spring_response, FreeBends, ReducedSystem, JAM_STRAIN, PINNED};
 use super::{StepSolver, StepStats};
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::param::Param;
 
 /// The f32 factor is used only when it contracts the error of the linear correction iteration
 /// x ← x + Ã⁻¹(b − A·x) by at least this factor per iteration (estimated at construction);
@@ -811,6 +812,17 @@ pub fn symmetric_product(upper: &CsMat<f64>, v: &[Lanes4], out: &mut [Lanes4]) {
 impl StepSolver for FastSolver {
     fn system(&self) -> &ReducedSystem {
         &self.sys
+    }
+
+    fn drive(&mut self, pins: &[DVec3], shapes: Vec<(usize, Collider)>) -> Result<()> {
+        if !shapes.is_empty() {
+            return Err(Error::param_value(
+                Param::Solver,
+                "fast: a moving body collider needs the Newton solver",
+            ));
+        }
+        self.sys.move_pins(pins);
+        Ok(())
     }
 
     fn step(&mut self, x: &mut [DVec3], v: &mut [DVec3]) -> Result<StepStats> {

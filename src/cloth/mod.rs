@@ -5,6 +5,7 @@
 //! [`simulate`] (which adds the [`wind`] before each step) records a [`FrameCache`].
 
 pub mod collide;
+pub mod drive;
 // The sparse factorisations are internal; benches/cloth.rs measures them with the `internals`
 // feature.
 #[cfg(feature = "internals")]
@@ -59,6 +60,15 @@ pub trait StepSolver {
     /// # Errors
     /// A solver may fail when its linear system cannot be factored.
     fn step(&mut self, x: &mut [DVec3], v: &mut [DVec3]) -> Result<StepStats>;
+
+    /// Moves what drives the cloth to where it is at the end of the next step: the pinned
+    /// particles to their entries of `pins` (model order, metres; free entries are not read),
+    /// and each `(j, shape)` of `shapes` replaces collider `j` (a moving body).
+    ///
+    /// # Errors
+    /// [`Error::Param`] (`solver`) when the solver cannot take moving colliders (only Newton
+    /// can).
+    fn drive(&mut self, pins: &[DVec3], shapes: Vec<(usize, collide::Collider)>) -> Result<()>;
 }
 
 /// Which solver a bake uses.
@@ -160,8 +170,40 @@ pub fn simulate(
     params: &BakeParams,
     progress: &mut dyn FnMut(usize),
 ) -> Result<Simulation> {
+    simulate_driven(model, solver, params, None, progress)
+}
+
+/// A character driving a bake: its pins and, when `body_shape` is `Some(j)`, its body as
+/// collider `j` of the solver's colliders.
+#[derive(Debug, Clone, Copy)]
+pub struct Driven<'a> {
+    /// The character.
+    pub drive: &'a drive::CharacterDrive,
+    /// Which collider is the body, if it collides.
+    pub body_shape: Option<usize>,
+}
+
+/// As [`simulate`], with the pins and the body collider moved by a character before every
+/// step (to where they are at the end of the step).
+///
+/// # Errors
+/// As [`simulate`]; the solver's refusal of moving colliders.
+pub fn simulate_driven(
+    model: &ClothModel,
+    solver: &mut dyn StepSolver,
+    params: &BakeParams,
+    driven: Option<Driven<'_>>,
+    progress: &mut dyn FnMut(usize),
+) -> Result<Simulation> {
     let start = Instant::now();
     let mut all = model.positions().to_vec();
+    let mut body_before = match driven {
+        Some(Driven {
+            drive,
+            body_shape: Some(_),
+        }) => drive.rest_body()?.map(std::sync::Arc::new),
+        _ => None,
+    };
     let mut cache = FrameCache::new(all.len());
     cache.push(&all);
     let sys = solver.system();
@@ -182,6 +224,22 @@ pub fn simulate(
             if let Some(air) = &mut air {
                 let time = ((frame - 1) * params.substeps + substep) as f64 * h;
                 air.apply(solver.system(), time, h, &x, &mut v);
+            }
+            if let Some(d) = driven {
+                let end = ((frame - 1) * params.substeps + substep + 1) as f64 * h;
+                let pose = d.drive.pose(end);
+                for (b, p) in d.drive.pins.iter().zip(&pose.pins) {
+                    all[b.particle as usize] = *p;
+                }
+                let mut shapes = Vec::new();
+                if let (Some(j), Some(before)) = (d.body_shape, &body_before) {
+                    let moving = collide::Collider::moving(before.clone(), pose.body)?;
+                    if let collide::Collider::Moving { after, .. } = &moving {
+                        body_before = Some(after.clone());
+                    }
+                    shapes.push((j, moving));
+                }
+                solver.drive(&all, shapes)?;
             }
             let s = solver.step(&mut x, &mut v).map_err(|e| match e {
                 // Solvers don't know frames: name the frame being computed.

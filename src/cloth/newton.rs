@@ -50,7 +50,7 @@ use faer::{Conj, MatMut, Par, Side};
 use glam::DVec3;
 
 use super::collide::contact::NewtonContact;
-use super::collide::Colliders;
+use super::collide::{Collider, Colliders};
 use super::system::{ReducedSystem, PINNED};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
@@ -616,6 +616,16 @@ fn index32(i: usize) -> Result<u32> {
 impl StepSolver for NewtonSolver {
     fn system(&self) -> &ReducedSystem {
         &self.sys
+    }
+
+    fn drive(&mut self, pins: &[DVec3], shapes: Vec<(usize, Collider)>) -> Result<()> {
+        self.sys.move_pins(pins);
+        if let Some(c) = &mut self.contact {
+            for (j, shape) in shapes {
+                c.set_shape(j, shape);
+            }
+        }
+        Ok(())
     }
 
     fn step(&mut self, x: &mut [DVec3], v: &mut [DVec3]) -> Result<StepStats> {

@@ -53,6 +53,8 @@ pub struct Anchors {
     pub a: Vec<u32>,
     /// The fixed end's position, m.
     pub at: Vec<DVec3>,
+    /// The fixed end's particle (model index), for [`ReducedSystem::move_pins`].
+    pub pinned: Vec<u32>,
     /// Rest length, m.
     pub rest: Vec<f64>,
     /// Stiffness in tension, N/m.
@@ -71,6 +73,8 @@ pub struct FreeBends {
     pub w: Vec<[f64; 4]>,
     /// Σ wᵢ xᵢ over the pinned vertices.
     pub fixed: Vec<DVec3>,
+    /// (stencil, pinned particle in model order, weight) of every pinned vertex in `fixed`.
+    pub fixed_terms: Vec<(u32, u32, f64)>,
 }
 
 /// The solver index [`FreeBends`] gives a pinned vertex.
@@ -174,6 +178,7 @@ impl ReducedSystem {
                     let (free_end, pinned_end) = if a != u32::MAX { (a, s.b) } else { (b, s.a) };
                     anchors.a.push(free_end);
                     anchors.at.push(model.mesh.positions[pinned_end as usize]);
+                    anchors.pinned.push(pinned_end);
                     anchors.rest.push(s.rest);
                     anchors.k.push(s.stiffness);
                     anchors.kc.push(s.compression);
@@ -186,10 +191,12 @@ impl ReducedSystem {
             let mut v = [PINNED; 4];
             let mut w = [0.0; 4];
             let mut fixed = DVec3::ZERO;
+            let mut terms = Vec::new();
             for i in 0..4 {
                 let p = st.vertices[i] as usize;
                 if solver_of[p] == u32::MAX {
                     fixed += model.mesh.positions[p] * st.weights[i];
+                    terms.push((bends.v.len() as u32, p as u32, st.weights[i]));
                 } else {
                     v[i] = solver_of[p];
                     w[i] = st.weights[i];
@@ -199,6 +206,7 @@ impl ReducedSystem {
                 bends.v.push(v);
                 bends.w.push(w);
                 bends.fixed.push(fixed);
+                bends.fixed_terms.extend(terms);
             }
         }
         let mass = particle_of
@@ -228,6 +236,22 @@ impl ReducedSystem {
     /// The inertia scale s = 1 + h·c.
     pub fn inertia_scale(&self) -> f64 {
         1.0 + self.params.time_step * self.params.damping
+    }
+
+    /// Moves the pinned particles to their positions in `all` (model order, metres; the free
+    /// entries are not read): the constants b of x = Kᵀx_f + b that springs and bending stencils
+    /// see. A pin driven along a path (a garment's waist on a walking character) calls this
+    /// before each step with the pins' positions at the end of the step.
+    pub fn move_pins(&mut self, all: &[DVec3]) {
+        for (at, &p) in self.anchors.at.iter_mut().zip(&self.anchors.pinned) {
+            *at = all[p as usize];
+        }
+        for f in &mut self.bends.fixed {
+            *f = DVec3::ZERO;
+        }
+        for &(s, p, w) in &self.bends.fixed_terms {
+            self.bends.fixed[s as usize] += all[p as usize] * w;
+        }
     }
 
     /// The free particles' entries of `all` (model order), in solver order.

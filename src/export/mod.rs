@@ -2,6 +2,7 @@
 
 pub mod atomic;
 pub mod basis;
+pub mod character;
 pub mod compact;
 pub mod estimate;
 pub mod frames;

@@ -58,6 +58,9 @@ pub struct MorphOptions {
     /// Unanimated meshes (the colliders) written as their own nodes after the cloth's, in the
     /// same scene; the cloth stays mesh 0 and node 0.
     pub static_meshes: Vec<StaticMesh>,
+    /// Time of frame 0 in seconds (frame k is keyed at start_time + k / fps): the first key of
+    /// an animation the cache plays beside.
+    pub start_time: f64,
 }
 
 impl MorphOptions {
@@ -72,6 +75,7 @@ impl MorphOptions {
             keyframe_tolerance: None,
             sparse: SparseMode::Auto,
             static_meshes: Vec::new(),
+            start_time: 0.0,
         }
     }
 }
@@ -176,6 +180,40 @@ pub fn encode_morph_gltf(
             message: format!("static mesh `{name}` {problem}").into(),
         });
     }
+    if let Some(t) = options
+        .keyframe_tolerance
+        .filter(|t| !(t.is_finite() && *t >= 0.0))
+    {
+        return Err(Error::param_value(
+            Param::KeyframeTolerance,
+            format!("{t}: must be zero or a positive distance"),
+        ));
+    }
+    let mut b = GltfBuilder::new();
+    let (node, stats) = push_morph(&mut b, path, mesh, frames, options)?;
+    push_scene(&mut b, node, &options.static_meshes);
+    super::playback::stamp(
+        &mut b.root,
+        &super::playback::Playback::frames(options.fps, frames.frame_count(), &options.name),
+    );
+    Ok(EncodedMorph {
+        files: b.encode(path)?,
+        stats,
+    })
+}
+
+/// Adds the morph-animated mesh of `frames` to `b`: its mesh, its node (returned, in no scene
+/// yet) and its weights animation (pushed last in `b`'s animations). `path` names errors.
+///
+/// # Errors
+/// As [`encode_morph_gltf`].
+pub(crate) fn push_morph(
+    b: &mut GltfBuilder,
+    path: &Path,
+    mesh: &Mesh,
+    frames: &RenderFrames,
+    options: &MorphOptions,
+) -> Result<(json::Index<json::Node>, CacheStats)> {
     let selection = match options.keyframe_tolerance {
         Some(t) if t.is_finite() && t >= 0.0 => select_keyframes(frames, t, options.interpolation),
         Some(t) => {
@@ -186,18 +224,16 @@ pub fn encode_morph_gltf(
         }
         None => KeyframeSelection::all(frames.frame_count()),
     };
-    let mut b = GltfBuilder::new();
     let normals = options
         .normals
         .then(|| super::shading::base_normals(mesh, frames));
-    let (attributes, indices) = base_primitive(&mut b, mesh, frames, normals.as_deref());
-    let (targets, mut stats) =
-        morph_targets(&mut b, frames, &selection, options, normals.as_deref());
+    let (attributes, indices) = base_primitive(b, mesh, frames, normals.as_deref());
+    let (targets, mut stats) = morph_targets(b, frames, &selection, options, normals.as_deref());
     let names: Vec<String> = selection.kept[1..]
         .iter()
         .map(|k| format!("frame_{k:04}"))
         .collect();
-    let material = cloth_material(&mut b);
+    let material = cloth_material(b);
     let gmesh = b.root.push(json::Mesh {
         name: Some(options.name.clone()),
         primitives: vec![json::mesh::Primitive {
@@ -225,19 +261,11 @@ pub fn encode_morph_gltf(
         mesh: Some(gmesh),
         ..Default::default()
     });
-    push_scene(&mut b, node, &options.static_meshes);
-    weights_animation(&mut b, node, &selection.kept, options);
-    super::playback::stamp(
-        &mut b.root,
-        &super::playback::Playback::frames(options.fps, frames.frame_count(), &options.name),
-    );
+    weights_animation(b, node, &selection.kept, options);
     stats.frames = frames.frame_count();
     stats.kept_frames = selection.kept;
     stats.max_interpolation_error = selection.max_error;
-    Ok(EncodedMorph {
-        files: b.encode(path)?,
-        stats,
-    })
+    Ok((node, stats))
 }
 
 /// A primitive's vertex attributes.
@@ -374,7 +402,7 @@ pub(crate) fn push_weights_animation(
 ) {
     let times: Vec<f32> = keys
         .iter()
-        .map(|&k| (k as f64 / options.fps) as f32)
+        .map(|&k| (options.start_time + k as f64 / options.fps) as f32)
         .collect();
     let input = b.scalars(&times, true);
     let output = b.scalars(weights, false);

@@ -773,7 +773,7 @@ fn node_trs_f32(node: &mut json::Node) -> ([f32; 3], [f32; 4], [f32; 3]) {
 
 /// Moves nodes with a skinned mesh that have a parent to the root of the scenes holding that
 /// parent's hierarchy.
-fn lift_skinned_meshes_to_root(root: &mut json::Root) {
+pub(crate) fn lift_skinned_meshes_to_root(root: &mut json::Root) {
     let mut parents = vec![None; root.nodes.len()];
     for (i, n) in root.nodes.iter().enumerate() {
         for c in n.children.iter().flatten() {

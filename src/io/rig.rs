@@ -438,33 +438,61 @@ impl RigDocument {
         })
     }
 
-    /// Every skinned mesh instance of the document (a node with both a mesh and a skin; its
-    /// triangle primitives merged), with bind-pose positions and joint influences.
+    /// Every mesh instance of the default scene (its triangle primitives merged) as a skinned
+    /// mesh: bind-pose positions and joint influences. A mesh without a skin is carried by its
+    /// node (a character made of rigid parts parented to bones): one joint, the node itself,
+    /// with an identity inverse bind matrix, so skinning it gives world(node)·p as glTF draws it.
     ///
     /// # Errors
     /// [`Error::InvalidInput`] for a skinned primitive without positions, joints or weights, or
     /// a joint index past the skin's joints.
-    pub fn skinned_meshes(&self) -> Result<Vec<SkinnedMesh>> {
+    pub fn body_meshes(&self) -> Result<Vec<SkinnedMesh>> {
         let doc = self.document()?;
         let data = |_: gltf::Buffer<'_>| Some(&self.bin[..]);
+        let mut in_scene = vec![false; self.root.nodes.len()];
+        let mut stack: Vec<usize> = doc
+            .default_scene()
+            .or_else(|| doc.scenes().next())
+            .map(|s| s.nodes().map(|n| n.index()).collect())
+            .unwrap_or_default();
+        while let Some(i) = stack.pop() {
+            if !std::mem::replace(&mut in_scene[i], true) {
+                stack.extend(
+                    self.root.nodes[i]
+                        .children
+                        .iter()
+                        .flatten()
+                        .map(|c| c.value()),
+                );
+            }
+        }
         let mut out = Vec::new();
-        for node in doc.nodes() {
-            let (Some(mesh), Some(skin)) = (node.mesh(), node.skin()) else {
+        for node in doc.nodes().filter(|n| in_scene[n.index()]) {
+            let Some(mesh) = node.mesh() else {
                 continue;
             };
+            let skin = node.skin();
             let name = mesh
                 .name()
                 .or(node.name())
                 .map_or_else(|| format!("#{}", node.index()), str::to_owned);
             let bad = |m: String| Error::invalid(&self.path, format!("skinned mesh `{name}`: {m}"));
-            let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
-            let inverse_bind: Vec<DAffine3> = match skin.reader(data).read_inverse_bind_matrices() {
-                Some(it) => it
-                    .map(|m| {
-                        DAffine3::from_mat4(DMat4::from_cols_array_2d(&m.map(|c| c.map(f64::from))))
-                    })
-                    .collect(),
-                None => vec![DAffine3::IDENTITY; joints.len()],
+            let (joints, inverse_bind): (Vec<usize>, Vec<DAffine3>) = match &skin {
+                Some(skin) => {
+                    let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+                    let ib = match skin.reader(data).read_inverse_bind_matrices() {
+                        Some(it) => it
+                            .map(|m| {
+                                DAffine3::from_mat4(DMat4::from_cols_array_2d(
+                                    &m.map(|c| c.map(f64::from)),
+                                ))
+                            })
+                            .collect(),
+                        None => vec![DAffine3::IDENTITY; joints.len()],
+                    };
+                    (joints, ib)
+                }
+                None => (vec![node.index()], vec![DAffine3::IDENTITY]),
             };
             let mut sm = SkinnedMesh {
                 name: name.clone(),
@@ -476,15 +504,18 @@ impl RigDocument {
                 influence_joint: Vec::new(),
                 influence_weight: Vec::new(),
             };
-            let sets = mesh
-                .primitives()
-                .map(|p| {
-                    p.attributes()
-                        .filter(|(s, _)| matches!(s, gltf::Semantic::Joints(_)))
-                        .count()
-                })
-                .max()
-                .unwrap_or(0);
+            let sets = if skin.is_none() {
+                0
+            } else {
+                mesh.primitives()
+                    .map(|p| {
+                        p.attributes()
+                            .filter(|(s, _)| matches!(s, gltf::Semantic::Joints(_)))
+                            .count()
+                    })
+                    .max()
+                    .unwrap_or(0)
+            };
             sm.per_vertex = 4 * sets.max(1);
             for prim in mesh.primitives() {
                 if prim.mode() != gltf::mesh::Mode::Triangles {
@@ -500,6 +531,12 @@ impl RigDocument {
                 let n = positions.len();
                 let mut joint_ids = vec![0u16; n * sm.per_vertex];
                 let mut weights = vec![0f32; n * sm.per_vertex];
+                if skin.is_none() {
+                    // Carried by the node: joint 0 (the node), weight 1.
+                    for w in weights.chunks_exact_mut(sm.per_vertex) {
+                        w[0] = 1.0;
+                    }
+                }
                 for set in 0..sets as u32 {
                     let (Some(j), Some(w)) = (r.read_joints(set), r.read_weights(set)) else {
                         return Err(bad(format!("JOINTS_{set} without WEIGHTS_{set}")));

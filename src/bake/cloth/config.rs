@@ -93,6 +93,12 @@ pub mod defaults {
     pub const RESOLUTION: u32 = 10;
     /// Solver steps per frame.
     pub const SUBSTEPS: usize = 1;
+    /// Loops of a driving animation written.
+    pub const CYCLES: usize = 1;
+    /// Loops of a driving animation simulated and discarded before those written.
+    pub const WARMUP_CYCLES: usize = 1;
+    /// Seconds of blending from a rig's rest pose into its animation.
+    pub const BLEND_IN: f64 = 0.5;
 }
 
 /// One cloth bake. `None` means "the default": the preset's value for presets, else
@@ -302,6 +308,67 @@ pub struct ClothJob {
     /// Seed of the gusts (the same seed gives the same bake).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = 0, value_name = "N"))]
     pub seed: u64,
+    /// An animated character (skinned .glb/.gltf) that drives the bake: the garment is given in
+    /// its rest pose; --pin selections ride its skinned surface, its body is a moving collider,
+    /// and the output is the character's document with the garment added (Newton solver only).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_name = "FILE.glb|.gltf", help_heading = "Character")
+    )]
+    pub rig: Option<PathBuf>,
+    /// The rig's animation that drives the bake: its name or #N [default: the first].
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long,
+            value_name = "NAME|#N",
+            requires = "rig",
+            help_heading = "Character"
+        )
+    )]
+    pub animation: Option<String>,
+    /// Loops of the animation written (frames follow its keys at --fps; --frames is not used).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::CYCLES, value_name = "N", help_heading = "Character"))]
+    pub cycles: usize,
+    /// Loops simulated and discarded before those written, so the written loop starts in
+    /// motion and joins up (the report measures the seam).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::WARMUP_CYCLES, value_name = "W", help_heading = "Character"))]
+    pub warmup_cycles: usize,
+    /// Seconds of blending from the rig's rest pose (where the garment is given) into the
+    /// animation's first pose, simulated and discarded first.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::BLEND_IN, value_name = "S", help_heading = "Character"))]
+    pub blend_in: f64,
+    /// Bind every pin rigidly to this joint (name, #N or Node_N) instead of the skinned surface
+    /// under it.
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long,
+            value_name = "JOINT",
+            requires = "rig",
+            help_heading = "Character"
+        )
+    )]
+    pub pin_to: Option<String>,
+    /// Whether the character's skinned meshes are a (moving) collider.
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Switch::On, help_heading = "Character"))]
+    pub body_collider: Switch,
+    /// Write only the garment (its morph animation keyed on the animation's times), not the
+    /// character.
+    #[cfg_attr(feature = "cli", arg(long, help_heading = "Character"))]
+    pub garment_only: bool,
+    /// Metres per unit of the rig (Fox.glb is in centimetres: 0.01). The garment is placed (by
+    /// --scale/--translate/--up) in metres in the rig's frame scaled by this.
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long,
+            default_value_t = 1.0,
+            value_name = "M",
+            help_heading = "Character"
+        )
+    )]
+    pub rig_scale: f64,
 }
 
 impl Default for ClothJob {
@@ -356,6 +423,15 @@ impl Default for ClothJob {
             lift: None,
             turbulence: 0.0,
             seed: 0,
+            rig: None,
+            animation: None,
+            cycles: defaults::CYCLES,
+            warmup_cycles: defaults::WARMUP_CYCLES,
+            blend_in: defaults::BLEND_IN,
+            pin_to: None,
+            body_collider: Switch::On,
+            garment_only: false,
+            rig_scale: 1.0,
         }
     }
 }

@@ -3,6 +3,7 @@
 //! [`ClothJob`] (in [`config`]) holds every parameter; [`bake_cloth`] runs it and returns a
 //! [`ClothReport`] (in [`report`]) for the caller to write or print.
 
+pub mod character;
 pub mod config;
 pub mod report;
 
@@ -583,6 +584,9 @@ pub fn simulate_cloth(
 /// As [`prepare_cloth`]; [`Error::Diverged`] when the simulation blows up (nothing is written);
 /// write errors.
 pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Result<ClothReport> {
+    if job.rig.is_some() {
+        return character::bake_on_character(job, progress);
+    }
     let SimulatedCloth {
         prepared,
         simulation: sim,
@@ -599,6 +603,7 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
         keyframe_tolerance: job.keyframe_tolerance,
         sparse: job.sparse,
         static_meshes: collider_meshes(model, &params.colliders),
+        start_time: 0.0,
     };
     let exported = export(job, model, &sim.cache, options)?;
     let seconds_export = export_start.elapsed().as_secs_f64();
@@ -792,6 +797,7 @@ fn report(
         cache,
         vat,
         environment: environment_report(params, frames),
+        character: None,
         warnings: {
             let mut w = model.warnings.clone();
             w.extend(convergence_warning(frames, params.tolerance));

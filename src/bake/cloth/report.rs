@@ -73,8 +73,42 @@ pub struct ClothReport {
     pub vat: Option<VatReport>,
     /// Colliders, contacts and wind, when any.
     pub environment: Option<EnvironmentReport>,
+    /// The character that drove the bake, with `--rig`.
+    pub character: Option<CharacterReport>,
     /// Non-fatal quirks of the input.
     pub warnings: Vec<Text>,
+}
+
+/// A bake driven by an animated character (`--rig`). The report's per-frame arrays
+/// (`iterations`, `residuals`, `unconverged_frames`) count every simulated frame, the blend-in
+/// and warm-up included; the output holds frames `first_written_frame..=frames`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CharacterReport {
+    /// The rig file.
+    pub rig: PathBuf,
+    /// The driving animation.
+    pub animation: String,
+    /// Its duration (one loop), seconds.
+    pub cycle_seconds: f64,
+    /// Frames per loop (the bake's fps is frames_per_cycle / cycle_seconds).
+    pub frames_per_cycle: usize,
+    /// Frames blending from the rest pose into the animation.
+    pub blend_frames: usize,
+    /// Loops simulated and discarded.
+    pub warmup_cycles: usize,
+    /// Loops written.
+    pub cycles: usize,
+    /// The first simulated frame written (it is frame 0 of the output).
+    pub first_written_frame: usize,
+    /// Pins bound to the skinned surface, and to one joint.
+    pub pins_on_surface: usize,
+    /// Pins bound to the `--pin-to` joint.
+    pub pins_on_joint: usize,
+    /// Triangles of the body collider (0 when off).
+    pub body_triangles: usize,
+    /// Largest distance between a particle's position in the first and the last written frame
+    /// (the loop's seam), metres.
+    pub loop_seam: f64,
 }
 
 /// The fabric of a material-model bake.

@@ -24,7 +24,7 @@
 
 use glam::DVec3;
 
-use super::{Colliders, SurfacePoint};
+use super::{Collider, Colliders, SurfacePoint};
 use crate::cloth::system::ReducedSystem;
 
 /// Moves `p` out of every collider along the surface normal to the thickness, and returns what
@@ -127,6 +127,8 @@ pub const STATIC_SLIP_SPEED: f64 = 1e-4;
 #[derive(Debug, Clone, Copy)]
 struct LaggedContact {
     particle: u32,
+    /// The collider (index into the shapes).
+    shape: u32,
     normal: DVec3,
     /// Normal force at the end of the previous step, N.
     force: f64,
@@ -155,6 +157,10 @@ pub struct NewtonContact {
     /// thickness, except for a particle that started closer to that collider (see
     /// [`rest_layer`]). Empty until the first step.
     layer: Vec<f64>,
+    /// Per particle and collider (`i·shapes + j`): how far the collider's surface near the
+    /// particle moves during the step, m (see [`Collider::carry`]). Empty while every collider
+    /// is static.
+    carry: Vec<DVec3>,
 }
 
 impl NewtonContact {
@@ -166,6 +172,24 @@ impl NewtonContact {
             lagged: Vec::new(),
             x0: vec![DVec3::ZERO; sys.len()],
             layer: Vec::new(),
+            carry: Vec::new(),
+        }
+    }
+
+    /// Replaces collider `j` (a body that moved: its pose at the end of the coming step, see
+    /// [`Collider::Moving`]). Call before [`NewtonContact::begin_step`].
+    pub fn set_shape(&mut self, j: usize, shape: Collider) {
+        self.colliders.shapes[j] = shape;
+    }
+
+    /// Where particle `i` came from as collider `j` sees it: its position at the start of the
+    /// step, carried along with the collider's surface near it (so a particle resting on a body
+    /// that moves is still on the free side).
+    #[inline]
+    fn from(&self, i: usize, j: usize) -> DVec3 {
+        match self.carry.get(i * self.colliders.shapes.len() + j) {
+            Some(c) => self.x0[i] + *c,
+            None => self.x0[i],
         }
     }
 
@@ -182,6 +206,20 @@ impl NewtonContact {
     /// there: the distance it starts at ([`rest_layer`]).
     pub fn begin_step(&mut self, x0: &[DVec3]) {
         self.x0.copy_from_slice(x0);
+        let shapes = self.colliders.shapes.len();
+        if self.colliders.shapes.iter().any(Collider::is_moving) {
+            let reach = 2.0 * self.colliders.thickness;
+            self.carry.clear();
+            self.carry.extend(x0.iter().flat_map(|p| {
+                self.colliders
+                    .shapes
+                    .iter()
+                    .map(move |shape| shape.carry(*p, reach))
+            }));
+            debug_assert_eq!(self.carry.len(), x0.len() * shapes);
+        } else {
+            self.carry.clear();
+        }
         if self.layer.is_empty() {
             let t = self.colliders.thickness;
             self.layer = x0
@@ -210,10 +248,10 @@ impl NewtonContact {
     /// within its layer of, up to a relative round-off allowance), if any.
     #[inline]
     pub fn project(&self, i: usize, p: &mut DVec3) -> Option<SurfacePoint> {
-        let x0 = self.x0[i];
         let mut moved = false;
         let mut resting = None;
         for (j, shape) in self.colliders.shapes.iter().enumerate() {
+            let x0 = self.from(i, j);
             let layer = self.layer(i, j);
             let touch = self.touch(layer);
             let Some(s) = shape.contact(*p, x0, self.reach(touch, *p, x0)) else {
@@ -237,16 +275,23 @@ impl NewtonContact {
     /// (up to a relative round-off allowance).
     #[inline]
     pub fn resting(&self, i: usize, p: DVec3) -> Option<SurfacePoint> {
-        let x0 = self.x0[i];
+        self.resting_on(i, p).map(|(_, s)| s)
+    }
+
+    /// As [`NewtonContact::resting`], with the collider's index.
+    #[inline]
+    fn resting_on(&self, i: usize, p: DVec3) -> Option<(usize, SurfacePoint)> {
         self.colliders
             .shapes
             .iter()
             .enumerate()
             .find_map(|(j, shape)| {
+                let x0 = self.from(i, j);
                 let touch = self.touch(self.layer(i, j));
                 shape
                     .contact(p, x0, self.reach(touch, p, x0))
                     .filter(|s| s.distance <= touch)
+                    .map(|s| (j, s))
             })
     }
 
@@ -271,11 +316,11 @@ impl NewtonContact {
     }
 
     /// The friction slip of a lagged contact at `x`: the particle's displacement since the step
-    /// began, less its part along the contact normal (m).
+    /// began relative to the collider's surface, less its part along the contact normal (m).
     #[inline]
     fn slip(&self, c: &LaggedContact, x: &[DVec3]) -> DVec3 {
         let i = c.particle as usize;
-        let d = x[i] - self.x0[i];
+        let d = x[i] - self.from(i, c.shape as usize);
         d - c.normal * d.dot(c.normal)
     }
 
@@ -346,9 +391,10 @@ impl NewtonContact {
         let mut lagged = std::mem::take(&mut self.lagged);
         lagged.clear();
         for (i, (p, g)) in x.iter().zip(grad).enumerate() {
-            if let Some(s) = self.resting(i, *p) {
+            if let Some((j, s)) = self.resting_on(i, *p) {
                 lagged.push(LaggedContact {
                     particle: i as u32,
+                    shape: j as u32,
                     normal: s.normal,
                     force: g.dot(s.normal).max(0.0),
                 });
@@ -359,9 +405,10 @@ impl NewtonContact {
         for k in 0..self.layer.len() {
             if self.layer[k] < t {
                 let (i, j) = (k / shapes, k % shapes);
-                let reach = t + x[i].distance(self.x0[i]);
+                let from = self.from(i, j);
+                let reach = t + x[i].distance(from);
                 let distance = self.colliders.shapes[j]
-                    .contact(x[i], self.x0[i], reach)
+                    .contact(x[i], from, reach)
                     .map_or(t, |s| s.distance);
                 self.layer[k] = self.layer[k].max(distance).min(t);
             }

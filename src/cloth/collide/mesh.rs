@@ -225,6 +225,17 @@ impl MeshCollider {
         (self.nodes[0].lo, self.nodes[0].hi)
     }
 
+    /// The surface point nearest to `p` within `reach` (m) as the corners of its triangle
+    /// (indices into [`Self::positions`]) and its barycentric coordinates there: where a point
+    /// bound to the surface goes when the mesh deforms (same corners, new positions). `None`
+    /// when nothing is that close.
+    pub fn closest(&self, p: DVec3, reach: f64) -> Option<([u32; 3], DVec3)> {
+        let n = self.nearest(p, reach.max(0.0) + self.tiny)?;
+        let tri = &self.tris[n.tri];
+        let corners = self.triangles[tri.id as usize];
+        Some((corners, barycentric(n.point, tri.a, tri.b, tri.c)))
+    }
+
     /// Where particle `p` is relative to the surface, given `from`: the particle's position at
     /// the start of the time step (on the free side). Metres, the cloth's frame.
     ///
@@ -522,6 +533,17 @@ fn box_distance_squared(p: DVec3, node: &Node) -> f64 {
 
 /// The point of triangle abc closest to p and the feature it lies on (Ericson, Real-Time
 /// Collision Detection, 5.1.5). The triangle must not be degenerate.
+/// Barycentric coordinates of `p` (in the triangle's plane) in the triangle a, b, c.
+fn barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let (v0, v1, v2) = (b - a, c - a, p - a);
+    let (d00, d01, d11) = (v0.dot(v0), v0.dot(v1), v1.dot(v1));
+    let (d20, d21) = (v2.dot(v0), v2.dot(v1));
+    let denom = d00 * d11 - d01 * d01;
+    let v = (d11 * d20 - d01 * d21) / denom;
+    let w = (d00 * d21 - d01 * d20) / denom;
+    DVec3::new(1.0 - v - w, v, w)
+}
+
 fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, Feature) {
     let ab = b - a;
     let ac = c - a;

@@ -100,6 +100,19 @@ pub enum Collider {
     Box(Cuboid),
     /// A triangle mesh (solid when closed, a two-sided shell when open), shared between solvers.
     Mesh(Arc<MeshCollider>),
+    /// A triangle mesh that moves (a character's skinned body): its pose at the start and at
+    /// the end of the current step, same triangles. Contacts are taken against the end pose; a
+    /// particle's start position is carried along with the surface near it ([`Self::carry`]),
+    /// so a body that moves farther than the thickness in one step pushes the cloth ahead of it
+    /// instead of passing through. Only Newton supports it.
+    Moving {
+        /// The pose at the start of the step.
+        before: Arc<MeshCollider>,
+        /// The pose at the end of the step.
+        after: Arc<MeshCollider>,
+        /// The largest distance a vertex moves between the two, m.
+        motion: f64,
+    },
 }
 
 impl PartialEq for Collider {
@@ -109,6 +122,9 @@ impl PartialEq for Collider {
             (Collider::Sphere(a), Collider::Sphere(b)) => a == b,
             (Collider::Box(a), Collider::Box(b)) => a == b,
             (Collider::Mesh(a), Collider::Mesh(b)) => Arc::ptr_eq(a, b),
+            (Collider::Moving { after: a, .. }, Collider::Moving { after: b, .. }) => {
+                Arc::ptr_eq(a, b)
+            }
             _ => false,
         }
     }
@@ -152,6 +168,54 @@ impl Collider {
             Collider::Sphere(b) => Some(b.surface_point(p)),
             Collider::Box(c) => Some(c.surface_point(p)),
             Collider::Mesh(m) => m.contact(p, from, reach),
+            Collider::Moving { after, .. } => after.contact(p, from, reach),
+        }
+    }
+
+    /// A body that moves from `before` to `after` during a step (the same triangles; the
+    /// positions are metres in the cloth's frame).
+    ///
+    /// # Errors
+    /// As [`MeshCollider::new`] for the end pose.
+    pub fn moving(before: Arc<MeshCollider>, after: Vec<DVec3>) -> Result<Self> {
+        let motion = before
+            .positions()
+            .iter()
+            .zip(&after)
+            .map(|(a, b)| a.distance_squared(*b))
+            .fold(0.0, f64::max)
+            .sqrt();
+        let after = Arc::new(MeshCollider::new(after, before.triangles().to_vec())?);
+        Ok(Collider::Moving {
+            before,
+            after,
+            motion,
+        })
+    }
+
+    /// True for a collider that moves ([`Collider::Moving`]).
+    pub fn is_moving(&self) -> bool {
+        matches!(self, Collider::Moving { .. })
+    }
+
+    /// How far the surface point nearest to `p` (within `reach` plus the surface's own motion,
+    /// m) moves during the step, m; zero for static colliders and for points out of reach.
+    pub fn carry(&self, p: DVec3, reach: f64) -> DVec3 {
+        let Collider::Moving {
+            before,
+            after,
+            motion,
+        } = self
+        else {
+            return DVec3::ZERO;
+        };
+        match before.closest(p, reach + motion) {
+            Some((corners, bary)) => corners
+                .iter()
+                .zip(bary.to_array())
+                .map(|(&v, w)| (after.positions()[v as usize] - before.positions()[v as usize]) * w)
+                .sum(),
+            None => DVec3::ZERO,
         }
     }
 
@@ -162,7 +226,9 @@ impl Collider {
             Collider::Plane(h) => StaticMesh::plane(h.normal, h.offset, centre, size, name),
             Collider::Sphere(b) => StaticMesh::sphere(b.centre, b.radius, name),
             Collider::Box(c) => StaticMesh::cuboid(c.min, c.max, name),
-            Collider::Mesh(m) => StaticMesh::from_triangles(m.positions(), m.triangles(), name),
+            Collider::Mesh(m) | Collider::Moving { before: m, .. } => {
+                StaticMesh::from_triangles(m.positions(), m.triangles(), name)
+            }
         }
     }
 
@@ -181,6 +247,9 @@ impl Collider {
                 "box ({:.3},{:.3},{:.3})..({:.3},{:.3},{:.3})",
                 c.min.x, c.min.y, c.min.z, c.max.x, c.max.y, c.max.z
             ),
+            Collider::Moving { after: m, .. } => {
+                format!("moving mesh, {} triangles", m.triangles().len())
+            }
             Collider::Mesh(m) => format!(
                 "mesh, {} triangles, {}",
                 m.triangles().len(),

@@ -1,0 +1,247 @@
+//! A garment baked on an animated character (`--rig`): the animation drives the pins and the
+//! body collider ([`crate::cloth::drive`]), loops are warmed up and cut, and the garment is
+//! written into the character's document ([`crate::export::character`]).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use super::{
+    check_export_options, prepare_cloth, report, CacheReport, CharacterReport, ClothJob,
+    ClothReport, Exported, PreparedCloth, Switch,
+};
+use crate::cloth::collide::Collider;
+use crate::cloth::drive::CharacterDrive;
+use crate::cloth::{make_solver, simulate_driven, Driven, FrameCache, SolverKind};
+use crate::error::{Error, Result};
+use crate::export::character::{encode_character_gltf, CharacterOptions};
+use crate::export::morph::encode_morph_gltf;
+use crate::export::{MorphOptions, RenderFrames, Written};
+use crate::io::rig::RigDocument;
+use crate::param::Param;
+use crate::spec::positive;
+use crate::text;
+
+/// The loop seam above which the report warns, metres.
+pub const SEAM_WARNING: f64 = 0.01;
+
+/// Runs a `--rig` bake: prepare, simulate blend-in + warm-up + written loops, cut, export,
+/// report.
+///
+/// # Errors
+/// Option errors (a solver other than Newton, `--frames`, a basis or VAT, which this bake does
+/// not write yet), rig errors (no such animation or joint, no skinned mesh to bind to), and those
+/// of [`super::bake_cloth`].
+pub fn bake_on_character(
+    job: &ClothJob,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ClothReport> {
+    let rig_path = job.rig.clone().expect("called for --rig jobs");
+    if job.solver != SolverKind::Newton {
+        return Err(Error::param_value(
+            Param::Solver,
+            text!(
+                "fast: a bake on a character (",
+                Param::Rig,
+                ") needs newton"
+            ),
+        ));
+    }
+    for (given, param) in [
+        (job.frames.is_some(), Param::Frames),
+        (job.basis.is_some(), Param::Basis),
+        (job.vat.is_some(), Param::Vat),
+    ] {
+        if given {
+            return Err(Error::param_value(
+                param,
+                text!(
+                    "not with ",
+                    Param::Rig,
+                    if param == Param::Frames {
+                        ": the frames follow the animation (use "
+                    } else {
+                        ": a bake on a character writes a morph cache per frame (without "
+                    },
+                    if param == Param::Frames {
+                        Param::Cycles
+                    } else {
+                        param
+                    },
+                    ")"
+                ),
+            ));
+        }
+    }
+    if job.cycles == 0 {
+        return Err(Error::param_value(Param::Cycles, "0: must be at least 1"));
+    }
+    let rig_scale = positive(Param::RigScale, job.rig_scale)?;
+    if !(job.blend_in.is_finite() && job.blend_in >= 0.0) {
+        return Err(Error::param_value(
+            Param::BlendIn,
+            format!(
+                "{}: must be zero or a positive number of seconds",
+                job.blend_in
+            ),
+        ));
+    }
+    check_export_options(job)?;
+
+    let doc = RigDocument::load(&rig_path)?;
+    let rig_warnings = doc.warnings.clone();
+    let clip = doc.clip(job.animation.as_deref().unwrap_or("#0"), Param::Animation)?;
+    let skeleton = doc.skeleton()?;
+    let bodies = doc.body_meshes()?;
+    let cycle = clip.duration();
+    let fps = positive(Param::Fps, job.fps.unwrap_or(super::defaults::FPS))?;
+    // Whole frames per loop, so every loop starts on a frame: the bake's rate is adjusted to
+    // frames_per_cycle / cycle (29.97 instead of 30 for a 1.0333 s walk).
+    let frames_per_cycle = ((cycle * fps).round() as usize).max(1);
+    let fps = frames_per_cycle as f64 / cycle;
+    let blend_frames = (job.blend_in * fps).ceil() as usize;
+    let first_written = blend_frames + job.warmup_cycles * frames_per_cycle;
+    let total = first_written + job.cycles * frames_per_cycle;
+
+    let sized = ClothJob {
+        frames: Some(total),
+        fps: Some(fps),
+        ..job.clone()
+    };
+    let mut prepared = prepare_cloth(&sized)?;
+    let mut drive = CharacterDrive::new(
+        skeleton,
+        clip.clone(),
+        if job.body_collider == Switch::On || job.pin_to.is_none() {
+            bodies
+        } else {
+            Vec::new()
+        },
+        rig_scale,
+        blend_frames as f64 / fps,
+    )?;
+    let PreparedCloth { model, params, .. } = &mut prepared;
+    let pinned: Vec<u32> = (0..model.particle_count() as u32)
+        .filter(|&i| model.pinned[i as usize])
+        .collect();
+    let (on_surface, on_joint) = match &job.pin_to {
+        Some(joint) => {
+            let node = doc.find_node(joint)?;
+            drive.bind_to_node(&pinned, model.positions(), node);
+            (0, pinned.len())
+        }
+        None => {
+            if !pinned.is_empty() {
+                drive.bind_to_surface(&pinned, model.positions())?;
+            }
+            (pinned.len(), 0)
+        }
+    };
+    let mut body_triangles = 0;
+    let body_shape = match (job.body_collider, drive.rest_body()?) {
+        (Switch::On, Some(body)) => {
+            body_triangles = body.triangles().len();
+            params.colliders.shapes.push(Collider::Mesh(Arc::new(body)));
+            Some(params.colliders.shapes.len() - 1)
+        }
+        _ => None,
+    };
+    let mut solver = make_solver(model, params)?;
+    let sim = simulate_driven(
+        model,
+        solver.as_mut(),
+        params,
+        Some(Driven {
+            drive: &drive,
+            body_shape,
+        }),
+        &mut |f| progress(f, total),
+    )?;
+
+    // The written loops: frames first_written..=total, as frames 0.. of the output.
+    let mut cache = FrameCache::new(sim.cache.particle_count());
+    let mut seam = 0.0f64;
+    let mut buffer = Vec::new();
+    for k in first_written..=total {
+        buffer.clear();
+        buffer.extend(sim.cache.frame(k).iter().map(|p| p.as_dvec3()));
+        cache.push(&buffer);
+    }
+    let (first, last) = (sim.cache.frame(first_written), sim.cache.frame(total));
+    for (a, b) in first.iter().zip(last) {
+        seam = seam.max(f64::from(a.distance(*b)));
+    }
+
+    let export_start = Instant::now();
+    let name = job.display_name();
+    let options = MorphOptions {
+        fps,
+        interpolation: job.interpolation,
+        name,
+        normals: job.normals == Switch::On,
+        keyframe_tolerance: job.keyframe_tolerance,
+        sparse: job.sparse,
+        static_meshes: Vec::new(),
+        start_time: clip.start(),
+    };
+    crate::export::morph::check_cache(&job.output, &model.mesh, &cache)?;
+    let frames = RenderFrames::new(&model.mesh, &cache);
+    let morph = if job.garment_only {
+        encode_morph_gltf(&job.output, &model.mesh, &frames, &options)?
+    } else {
+        let character = CharacterOptions {
+            clip: &clip,
+            cycles: job.cycles,
+            rig_scale,
+        };
+        encode_character_gltf(&job.output, doc, &model.mesh, &frames, &options, &character)?
+    };
+    let gltf_bytes = morph.files.iter().map(|(_, b)| b.len() as u64).sum();
+    let written = Written::write_all(morph.files)?;
+    let exported = Exported {
+        written,
+        cache: CacheReport {
+            keyframe_tolerance: options.keyframe_tolerance,
+            gltf_bytes,
+            stats: morph.stats,
+            basis: None,
+        },
+        vat: None,
+    };
+    let seconds_export = export_start.elapsed().as_secs_f64();
+    let mut out = report(
+        &prepared,
+        job,
+        &sim.frames,
+        sim.seconds,
+        seconds_export,
+        exported,
+    );
+    if seam > SEAM_WARNING {
+        out.warnings.push(text!(
+            format!(
+                "the written loop does not join up: a particle is {:.1} mm apart in its first and \
+             last frames (more than {:.0} mm); raise ",
+                seam * 1e3,
+                SEAM_WARNING * 1e3
+            ),
+            Param::WarmupCycles
+        ));
+    }
+    out.character = Some(CharacterReport {
+        rig: rig_path,
+        animation: clip.name.clone(),
+        cycle_seconds: cycle,
+        frames_per_cycle,
+        blend_frames,
+        warmup_cycles: job.warmup_cycles,
+        cycles: job.cycles,
+        first_written_frame: first_written,
+        pins_on_surface: on_surface,
+        pins_on_joint: on_joint,
+        body_triangles,
+        loop_seam: seam,
+    });
+    out.warnings
+        .extend(rig_warnings.into_iter().map(|w| text!(w)));
+    Ok(out)
+}

@@ -1,0 +1,286 @@
+//! Cloth driven by an animated character: pins that ride the character's skinned surface (or
+//! one joint), and its skinned body as a moving collider.
+//!
+//! Frames: the character's document frame scaled by [`CharacterDrive::scale`] (metres per
+//! document unit) is the cloth's frame; the garment is given in the character's rest pose (every
+//! node at its own transform), already placed in metres.
+//!
+//! Time: simulation time τ (seconds from frame 0) runs through three phases:
+//! 1. a blend-in of `blend_in` seconds from the rest pose to the animation's first pose (each
+//!    animated node's translation and scale lerped, rotation slerped, by a smoothstep of τ), so
+//!    the garment is not torn by a jump from the rest pose to the first key;
+//! 2. the animation, played in a loop from its first key: τ − blend_in wraps modulo the
+//!    animation's duration.
+//!
+//! A pin bound to the surface follows linear blend skinning with the influences of the nearest
+//! body point (the skin weights of its triangle's corners blended by barycentric coordinates):
+//! at time τ it is at Σₖ wₖ·Wₖ(τ)·Wₖ(rest)⁻¹·p, with Wₖ the world transform of joint k and p its
+//! rest position. It therefore moves exactly as the body surface under it (to the skinning's
+//! linearity), keeping its offset from the surface.
+
+use std::sync::Arc;
+
+use glam::{DAffine3, DVec3};
+
+use super::collide::{Collider, MeshCollider};
+use crate::data::animation::{Clip, Skeleton, SkinnedMesh, Trs};
+use crate::error::{Error, Result};
+use crate::param::Param;
+use crate::text;
+
+/// How a pinned particle follows the character.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Binding {
+    /// The particle (model index).
+    pub particle: u32,
+    /// (node, weight) pairs, weights summing to 1.
+    pub influences: Vec<(usize, f64)>,
+    /// Its rest position in document units.
+    pub rest: DVec3,
+}
+
+/// An animated character driving a bake.
+#[derive(Debug, Clone)]
+pub struct CharacterDrive {
+    skeleton: Skeleton,
+    clip: Clip,
+    posed: Vec<bool>,
+    /// Inverse rest world transform of every node.
+    rest_inverse: Vec<DAffine3>,
+    /// The skinned body merged into one mesh, if it collides.
+    body: Option<Body>,
+    /// Metres per document unit.
+    pub scale: f64,
+    /// Blend-in from the rest pose, seconds.
+    pub blend_in: f64,
+    /// The pinned particles' bindings.
+    pub pins: Vec<Binding>,
+}
+
+/// The character's skinned meshes merged into one body.
+#[derive(Debug, Clone)]
+struct Body {
+    meshes: Vec<SkinnedMesh>,
+    triangles: Vec<[u32; 3]>,
+}
+
+/// A pose of the character at one time, in the cloth's frame (metres).
+#[derive(Debug, Clone)]
+pub struct DrivenPose {
+    /// Each binding's position, in [`CharacterDrive::pins`] order.
+    pub pins: Vec<DVec3>,
+    /// The body's vertex positions (empty without a body collider).
+    pub body: Vec<DVec3>,
+}
+
+impl CharacterDrive {
+    /// A drive from a skeleton, the animation that moves it, and its skinned meshes
+    /// (`bodies`, used both to bind pins and, when `collide`, as the moving collider).
+    /// `scale` is metres per document unit, `blend_in` seconds.
+    ///
+    /// # Errors
+    /// [`Error::Param`] (`animation`) when the animation has no duration.
+    pub fn new(
+        skeleton: Skeleton,
+        clip: Clip,
+        bodies: Vec<SkinnedMesh>,
+        scale: f64,
+        blend_in: f64,
+    ) -> Result<Self> {
+        if clip.duration().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return Err(Error::param_value(
+                Param::Animation,
+                format!("`{}` has no duration (one key or none)", clip.name),
+            ));
+        }
+        let posed = clip.animated_nodes(skeleton.len());
+        let rest_inverse = skeleton
+            .world_at(None, 0.0)
+            .iter()
+            .map(DAffine3::inverse)
+            .collect();
+        let mut triangles = Vec::new();
+        let mut base = 0u32;
+        for m in &bodies {
+            triangles.extend(m.triangles.iter().map(|t| t.map(|i| i + base)));
+            base += m.positions.len() as u32;
+        }
+        Ok(CharacterDrive {
+            skeleton,
+            clip,
+            posed,
+            rest_inverse,
+            body: (!bodies.is_empty()).then_some(Body {
+                meshes: bodies,
+                triangles,
+            }),
+            scale,
+            blend_in,
+            pins: Vec::new(),
+        })
+    }
+
+    /// The animation's name.
+    pub fn clip_name(&self) -> &str {
+        &self.clip.name
+    }
+
+    /// The animation's duration (one cycle), seconds.
+    pub fn cycle(&self) -> f64 {
+        self.clip.duration()
+    }
+
+    /// True when the character has skinned meshes (a body to bind pins to and collide with).
+    pub fn has_body(&self) -> bool {
+        self.body.is_some()
+    }
+
+    /// Node world transforms at simulation time `tau` (seconds), document units.
+    pub fn world(&self, tau: f64) -> Vec<DAffine3> {
+        let start = self.clip.start();
+        if tau < self.blend_in {
+            let s = tau / self.blend_in;
+            let s = s * s * (3.0 - 2.0 * s);
+            let first = self.skeleton.pose(Some(&self.clip), start);
+            let pose: Vec<Trs> = self
+                .skeleton
+                .rest
+                .iter()
+                .zip(&first)
+                .map(|(a, b)| Trs {
+                    translation: a.translation.lerp(b.translation, s),
+                    rotation: a.rotation.slerp(b.rotation, s),
+                    scale: a.scale.lerp(b.scale, s),
+                })
+                .collect();
+            return self.skeleton.world(&pose, &self.posed);
+        }
+        let t = start + (tau - self.blend_in).rem_euclid(self.cycle());
+        self.skeleton
+            .world(&self.skeleton.pose(Some(&self.clip), t), &self.posed)
+    }
+
+    /// The body at rest (every node at its own transform), metres in the cloth's frame, as a
+    /// collider; `None` without skinned meshes.
+    ///
+    /// # Errors
+    /// As [`MeshCollider::new`].
+    pub fn rest_body(&self) -> Result<Option<MeshCollider>> {
+        let Some(body) = &self.body else {
+            return Ok(None);
+        };
+        let positions = self.body_positions(body, &self.skeleton.world_at(None, 0.0));
+        MeshCollider::new(positions, body.triangles.clone()).map(Some)
+    }
+
+    fn body_positions(&self, body: &Body, world: &[DAffine3]) -> Vec<DVec3> {
+        body.meshes
+            .iter()
+            .flat_map(|m| m.deform(world))
+            .map(|p| p * self.scale)
+            .collect()
+    }
+
+    /// Binds `particles` (model indices, rest positions `rest` in metres) to the body surface:
+    /// each to the influences of the nearest body point (see the module documentation).
+    ///
+    /// # Errors
+    /// [`Error::Param`] (`rig`) when the character has no skinned mesh to bind to.
+    pub fn bind_to_surface(&mut self, particles: &[u32], rest: &[DVec3]) -> Result<()> {
+        let Some(body) = &self.body else {
+            return Err(Error::param_value(
+                Param::Rig,
+                text!(
+                    "the character has no skinned mesh to bind the pins to (bind them to a joint with ",
+                    Param::PinTo,
+                    ")"
+                ),
+            ));
+        };
+        let collider = self
+            .rest_body()?
+            .expect("a body exists, so its rest pose does");
+        // Vertex → (mesh, vertex in mesh).
+        let owner: Vec<(usize, usize)> = body
+            .meshes
+            .iter()
+            .enumerate()
+            .flat_map(|(m, mesh)| (0..mesh.positions.len()).map(move |v| (m, v)))
+            .collect();
+        for &p in particles {
+            let at = rest[p as usize];
+            let (corners, bary) = collider
+                .closest(at, f64::INFINITY)
+                .expect("an unbounded search finds the nearest triangle");
+            let mut influences: Vec<(usize, f64)> = Vec::new();
+            for (&c, b) in corners.iter().zip(bary.to_array()) {
+                let (m, v) = owner[c as usize];
+                let mesh = &body.meshes[m];
+                let range = v * mesh.per_vertex..(v + 1) * mesh.per_vertex;
+                for (&j, &w) in mesh.influence_joint[range.clone()]
+                    .iter()
+                    .zip(&mesh.influence_weight[range])
+                {
+                    let w = b.clamp(0.0, 1.0) * f64::from(w);
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let node = mesh.joints[j as usize];
+                    match influences.iter_mut().find(|(n, _)| *n == node) {
+                        Some((_, sum)) => *sum += w,
+                        None => influences.push((node, w)),
+                    }
+                }
+            }
+            let total: f64 = influences.iter().map(|(_, w)| w).sum();
+            for (_, w) in &mut influences {
+                *w /= total;
+            }
+            self.pins.push(Binding {
+                particle: p,
+                influences,
+                rest: at / self.scale,
+            });
+        }
+        Ok(())
+    }
+
+    /// Binds `particles` rigidly to node `node`.
+    pub fn bind_to_node(&mut self, particles: &[u32], rest: &[DVec3], node: usize) {
+        self.pins.extend(particles.iter().map(|&p| Binding {
+            particle: p,
+            influences: vec![(node, 1.0)],
+            rest: rest[p as usize] / self.scale,
+        }));
+    }
+
+    /// The pins and the body at simulation time `tau` (seconds), metres in the cloth's frame.
+    pub fn pose(&self, tau: f64) -> DrivenPose {
+        let world = self.world(tau);
+        let pins = self
+            .pins
+            .iter()
+            .map(|b| {
+                b.influences
+                    .iter()
+                    .map(|&(n, w)| (world[n] * self.rest_inverse[n]).transform_point3(b.rest) * w)
+                    .sum::<DVec3>()
+                    * self.scale
+            })
+            .collect();
+        let body = self
+            .body
+            .as_ref()
+            .map_or_else(Vec::new, |b| self.body_positions(b, &world));
+        DrivenPose { pins, body }
+    }
+
+    /// The body collider for a step that ends at `tau`, moving from `before` (the previous
+    /// step's end pose).
+    ///
+    /// # Errors
+    /// As [`MeshCollider::new`] (a pose with non-finite positions).
+    pub fn moving_body(before: &Arc<MeshCollider>, after: Vec<DVec3>) -> Result<Collider> {
+        Collider::moving(Arc::clone(before), after)
+    }
+}

@@ -1,0 +1,153 @@
+//! A character and the garment baked on it, in one glTF that plays both in step.
+//!
+//! The character's document is kept whole (meshes, skins, materials, its animations), as for an
+//! IK bake on a rig ([`super::skin::write_rig_gltf`]). The garment is added as a morph-animated
+//! mesh on its own scene-root node, scaled from metres back to the document's units. A new first
+//! animation, named after the bake, holds the driving animation's keys (repeated for every
+//! written loop) and the garment's weights on the same time axis, so a viewer that plays the
+//! first animation (Blender's importer makes it active on every object, three.js users take
+//! `animations[0]`) plays the character and the garment together. The fps and frame range go into
+//! `asset.extras` ([`super::playback`]).
+
+use std::path::Path;
+
+use gltf_json as json;
+
+use super::gltf_doc::{channel, sampler, GltfBuilder};
+use super::morph::{push_morph, CacheStats, EncodedMorph, MorphOptions};
+use super::skin::lift_skinned_meshes_to_root;
+use super::RenderFrames;
+use crate::data::animation::{Clip, Interpolation, Property};
+use crate::error::Result;
+use crate::io::rig::RigDocument;
+use crate::mesh::Mesh;
+
+/// How the garment sits in the character's document.
+#[derive(Debug, Clone, Copy)]
+pub struct CharacterOptions<'a> {
+    /// The animation that drove the bake.
+    pub clip: &'a Clip,
+    /// Loops of it the garment's frames cover (frame 0 at the clip's first key).
+    pub cycles: usize,
+    /// Metres per document unit (the garment node is scaled by its inverse).
+    pub rig_scale: f64,
+}
+
+/// Encodes `doc` with the garment (`frames` of `mesh`, metres) added and the combined
+/// animation first, for `path`, without writing it. `options.start_time` should be the clip's
+/// first key.
+///
+/// # Errors
+/// As [`super::morph::encode_morph_gltf`].
+pub fn encode_character_gltf(
+    path: &Path,
+    doc: RigDocument,
+    mesh: &Mesh,
+    frames: &RenderFrames,
+    options: &MorphOptions,
+    character: &CharacterOptions<'_>,
+) -> Result<EncodedMorph> {
+    let mut b = GltfBuilder::from_parts(doc.root, doc.bin);
+    lift_skinned_meshes_to_root(&mut b.root);
+    let (node, stats): (_, CacheStats) = push_morph(&mut b, path, mesh, frames, options)?;
+    let s = (1.0 / character.rig_scale) as f32;
+    b.root.nodes[node.value()].scale = Some([s, s, s]);
+    let garment = b
+        .root
+        .animations
+        .pop()
+        .expect("push_morph adds the weights animation last");
+
+    let mut animation = driving_animation(&mut b, character);
+    let offset = animation.samplers.len() as u32;
+    for mut ch in garment.channels {
+        ch.sampler = json::Index::new(ch.sampler.value() as u32 + offset);
+        animation.channels.push(ch);
+    }
+    animation.samplers.extend(garment.samplers);
+    animation.name = Some(options.name.clone());
+    b.root.animations.insert(0, animation);
+
+    let scene = b.root.scene.map_or(0, |s| s.value());
+    if b.root.scenes.is_empty() {
+        b.root.scenes.push(json::Scene {
+            nodes: Vec::new(),
+            name: None,
+            extensions: None,
+            extras: Default::default(),
+        });
+    }
+    b.root.scenes[scene].nodes.push(node);
+    super::playback::stamp(
+        &mut b.root,
+        &super::playback::Playback::frames(options.fps, frames.frame_count(), &options.name),
+    );
+    Ok(EncodedMorph {
+        files: b.encode(path)?,
+        stats,
+    })
+}
+
+/// The clip's tracks as a new animation covering `cycles` loops: each loop's keys shifted by
+/// the clip's duration (a loop's first key dropped where it repeats the previous loop's last).
+fn driving_animation(b: &mut GltfBuilder, character: &CharacterOptions<'_>) -> json::Animation {
+    let clip = character.clip;
+    let period = clip.duration();
+    let mut channels = Vec::new();
+    let mut samplers = Vec::new();
+    for track in &clip.tracks {
+        let per_key = if track.interpolation == Interpolation::CubicSpline {
+            3
+        } else {
+            1
+        };
+        let mut times = Vec::new();
+        let mut values = Vec::new();
+        for c in 0..character.cycles.max(1) {
+            let shift = c as f64 * period;
+            for (k, &t) in track.times.iter().enumerate() {
+                let t = t + shift;
+                if times.last().is_some_and(|&last: &f64| t <= last) {
+                    continue;
+                }
+                times.push(t);
+                values.extend_from_slice(&track.values[k * per_key..(k + 1) * per_key]);
+            }
+        }
+        let times32: Vec<f32> = times.iter().map(|&t| t as f32).collect();
+        let input = b.scalars(&times32, true);
+        let output = match track.property {
+            Property::Rotation => {
+                let v: Vec<[f32; 4]> = values.iter().map(|v| v.as_vec4().to_array()).collect();
+                b.vec4(&v, None)
+            }
+            Property::Translation | Property::Scale => {
+                let v: Vec<glam::Vec3> = values.iter().map(|v| v.truncate().as_vec3()).collect();
+                b.vec3(&v, None, false)
+            }
+        };
+        let interpolation = match track.interpolation {
+            Interpolation::Step => json::animation::Interpolation::Step,
+            Interpolation::Linear => json::animation::Interpolation::Linear,
+            Interpolation::CubicSpline => json::animation::Interpolation::CubicSpline,
+        };
+        let property = match track.property {
+            Property::Translation => json::animation::Property::Translation,
+            Property::Rotation => json::animation::Property::Rotation,
+            Property::Scale => json::animation::Property::Scale,
+        };
+        channels.push(channel(
+            samplers.len(),
+            json::Index::new(track.node as u32),
+            property,
+        ));
+        samplers.push(sampler(input, output, interpolation));
+    }
+    json::Animation {
+        name: None,
+        channels,
+        samplers,
+        extensions: None,
+        extras: Default::default(),
+    }
+}
