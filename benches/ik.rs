@@ -5,7 +5,10 @@
 //! circle are printed for each solver and chain length. The Fox group solves the rig
 //! chain (b_Spine01_02..b_Head_05 of meshes/Fox.glb) along its default heart. The constrained
 //! group solves a 3-joint arm writing a cursive word on a board, free and then with a pole, an
-//! elbow hinge and a shoulder cone, printing mean iterations for each before timing.
+//! elbow hinge and a shoulder cone, then adding a shoulder twist limit and a tip axis, printing
+//! mean iterations for each before timing. The humanoid group solves the robot's right arm
+//! (UpperArmR..Palm2R of meshes/humanoid/RobotExpressive.glb, rest frames) on the targets of the
+//! `robot_writing` demo, free and with that demo's pole, limits and tip axis.
 
 use std::f64::consts::TAU;
 use std::hint::black_box;
@@ -13,7 +16,8 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use scenebake::bake::{bake_ik, IkJob};
 use scenebake::glam::DVec3;
-use scenebake::ik::{Ccd, Chain, Constraints, Fabrik, IkSolver};
+use scenebake::ik::{Ccd, Chain, Constraints, Fabrik, IkSolver, TipAxis};
+use scenebake::io::rig::RigDocument;
 
 fn circle() -> Vec<DVec3> {
     (0..150)
@@ -187,6 +191,17 @@ fn constrained(c: &mut Criterion) {
         &["joint_1:hinge:0..150".into(), "joint_0:cone:100".into()],
     )
     .unwrap();
+    let mut twisted = Constraints::from_specs(
+        &arm,
+        Some(DVec3::new(0.6, -0.5, 0.0)),
+        &[
+            "joint_1:hinge:0..150".into(),
+            "joint_0:cone:100".into(),
+            "joint_0:twist:-20..20".into(),
+        ],
+    )
+    .unwrap();
+    twisted.tip_axis = Some(TipAxis::new(DVec3::Z, TipAxis::continuing(&arm)).unwrap());
     let free = Constraints::default();
     let mut group = c.benchmark_group("arm_writing");
     group
@@ -194,7 +209,11 @@ fn constrained(c: &mut Criterion) {
         .measurement_time(std::time::Duration::from_secs(2))
         .warm_up_time(std::time::Duration::from_millis(500));
     for (name, solver) in solvers() {
-        for (label, cons) in [("free", &free), ("limited", &limited)] {
+        for (label, cons) in [
+            ("free", &free),
+            ("limited", &limited),
+            ("twist_tip", &twisted),
+        ] {
             let mut pose = arm.rest_pose();
             let (mut total, mut reached) = (0, 0);
             for t in &targets {
@@ -224,5 +243,77 @@ fn constrained(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, solve, fox, text_bake, constrained);
+/// The robot's right arm (rest frames) on the `robot_writing` demo's targets: free, then with
+/// the demo's pole, elbow hinge, shoulder cone and twist, and tip axis.
+fn humanoid(c: &mut Criterion) {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("meshes/humanoid/RobotExpressive.glb");
+    let pole = DVec3::new(-2.0, 0.5, 0.0);
+    let limits: Vec<String> = vec![
+        "LowerArmR:hinge:-120..0".into(),
+        "UpperArmR:cone:100".into(),
+        "UpperArmR:twist:0..75".into(),
+    ];
+    let job = IkJob {
+        rig: Some(rig.clone()),
+        chain: Some("UpperArmR..Palm2R".into()),
+        text: Some("hello".into()),
+        font: Some("script".into()),
+        size: Some(0.2),
+        center: Some(DVec3::new(-0.45, 1.85, 1.2)),
+        normal: Some(DVec3::new(0.0, 0.0, -1.0)),
+        pen_speed: Some(0.5),
+        output: dir.path().join("robot.glb"),
+        ..Default::default()
+    };
+    let targets: Vec<DVec3> = bake_ik(&job, &mut |_, _| {})
+        .unwrap()
+        .targets
+        .iter()
+        .map(|t| DVec3::from_array(*t))
+        .collect();
+    let doc = RigDocument::load(&rig).unwrap();
+    let arm = doc.chain("UpperArmR..Palm2R").unwrap().chain;
+    let mut limited = Constraints::from_specs(&arm, Some(pole), &limits).unwrap();
+    // The hand's pen: towards its first child (Middle1R), +Y in the hand's frame.
+    limited.tip_axis = Some(TipAxis::new(DVec3::Z, DVec3::Y).unwrap());
+    let free = Constraints::default();
+    let mut group = c.benchmark_group("humanoid_writing");
+    group
+        .sample_size(20)
+        .measurement_time(std::time::Duration::from_secs(2))
+        .warm_up_time(std::time::Duration::from_millis(500));
+    for (name, solver) in solvers() {
+        for (label, cons) in [("free", &free), ("limited", &limited)] {
+            let mut pose = arm.rest_pose();
+            let (mut total, mut reached) = (0, 0);
+            for t in &targets {
+                let r = solver.solve_with(&arm, &mut pose, *t, cons).unwrap();
+                total += r.iterations;
+                reached += usize::from(r.reached);
+            }
+            eprintln!(
+                "robot {name} {label}: mean iterations {:.2}, reached {reached}/{}",
+                total as f64 / targets.len() as f64,
+                targets.len()
+            );
+            group.bench_function(format!("{name}_{label}"), |b| {
+                let mut pose = arm.rest_pose();
+                let mut k = 0;
+                b.iter(|| {
+                    k = (k + 1) % targets.len();
+                    black_box(
+                        solver
+                            .solve_with(&arm, &mut pose, targets[k], cons)
+                            .unwrap(),
+                    )
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, solve, fox, text_bake, constrained, humanoid);
 criterion_main!(benches);

@@ -186,6 +186,10 @@ params! {
     PenSpeed => "pen_speed",
     /// The pen's easing time.
     Ease => "ease",
+    /// The end effector's (pen's) world direction.
+    TipAxis => "tip_axis",
+    /// The rig animation the bake is layered on.
+    BaseAnimation => "base_animation",
 }
 
 impl fmt::Display for Param {

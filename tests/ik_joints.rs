@@ -257,3 +257,125 @@ fn a_rig_leg_writes_with_a_pole_a_hinged_elbow_and_a_shoulder_cone() {
         }
     }
 }
+
+/// Twist of a local rotation `q` (rest = identity) about the rest bone direction `b0`, measured
+/// geometrically: a reference vector across the bone, turned by `q`, then carried back by the
+/// shortest arc from the bone's new direction to `b0`, ends up turned about `b0` by the twist.
+fn twist_of(q: DQuat, b0: DVec3) -> f64 {
+    let p0 = b0.any_orthonormal_vector();
+    let b = q * b0;
+    let p2 = DQuat::from_rotation_arc(b, b0) * (q * p0);
+    p0.cross(p2).dot(b0).atan2(p0.dot(p2))
+}
+
+#[test]
+fn twist_limits_hold_in_every_frame_and_keep_the_hand_on_the_word() {
+    // The hinged elbow makes the shoulder roll about the upper arm (so the hinge can bend the
+    // right way); a twist limit on the shoulder bounds that roll.
+    let dir = tempfile::tempdir().unwrap();
+    for solver in [SolverKind::Fabrik, SolverKind::Ccd] {
+        let free = IkJob {
+            pole: Some(POLE),
+            limit: vec!["joint_1:hinge:0..150".into()],
+            ..arm_job(dir.path(), &format!("free_{}", solver.as_str()), solver)
+        };
+        let limited = IkJob {
+            limit: vec![
+                "joint_1:hinge:0..150".into(),
+                "joint_0:twist:-20..20".into(),
+                "joint_0:cone:120".into(),
+            ],
+            ..free.clone()
+        };
+        let limited = IkJob {
+            output: dir.path().join(format!("twist_{}.glb", solver.as_str())),
+            ..limited
+        };
+        let worst = |job: &IkJob| {
+            let r = bake_ik(job, &mut |_, _| {}).unwrap();
+            let f = frames(job, "joint_0");
+            let w = f
+                .times
+                .iter()
+                .map(|&t| twist_of(f.local_rotation("joint_0", t), DVec3::NEG_Y).abs())
+                .fold(0.0, f64::max);
+            (r, f, w)
+        };
+        let (_, _, w_free) = worst(&free);
+        assert!(
+            w_free > 25f64.to_radians(),
+            "{solver:?}: the free shoulder rolls only {}°, the limit would not bind",
+            w_free.to_degrees()
+        );
+        let (r, f, w) = worst(&limited);
+        assert!(
+            w <= 20f64.to_radians() + 1e-4,
+            "{solver:?}: shoulder twist {}°",
+            w.to_degrees()
+        );
+        for (k, &t) in f.times.iter().enumerate() {
+            let d = f
+                .pos("joint_2", t)
+                .distance(DVec3::from_array(r.targets[k]));
+            assert!(
+                (d - r.error[k]).abs() < 1e-4,
+                "{solver:?} frame {k}: reported error"
+            );
+        }
+        assert!(
+            r.reached as f64 >= 0.9 * r.frames as f64,
+            "{solver:?}: {} of {} reached",
+            r.reached,
+            r.frames
+        );
+    }
+}
+
+#[test]
+fn the_tip_axis_holds_the_pen_into_the_board_without_moving_the_tip() {
+    let dir = tempfile::tempdir().unwrap();
+    // The board faces -Z (towards the arm); the pen points into it, +Z.
+    let axis = DVec3::new(0.0, 0.0, 1.0);
+    for solver in [SolverKind::Fabrik, SolverKind::Ccd] {
+        let base = IkJob {
+            pole: Some(POLE),
+            limit: vec!["joint_1:hinge:0..150".into()],
+            ..arm_job(dir.path(), &format!("pen_free_{}", solver.as_str()), solver)
+        };
+        let held = IkJob {
+            tip_axis: Some(axis),
+            output: dir.path().join(format!("pen_{}.glb", solver.as_str())),
+            ..base.clone()
+        };
+        let pen_angles = |job: &IkJob| {
+            let r = bake_ik(job, &mut |_, _| {}).unwrap();
+            let f = frames(job, "joint_0");
+            let tip = f.l.node_by_name("joint_2");
+            // The pen continues the last bone: -Y in the tip's frame (rest rotation identity).
+            let angles: Vec<f64> = f
+                .times
+                .iter()
+                .map(|&t| {
+                    let w = f.l.world(&f.tracks, tip, t);
+                    w.transform_vector3(DVec3::NEG_Y).angle_between(axis)
+                })
+                .collect();
+            (r, f, angles)
+        };
+        let (_, _, free) = pen_angles(&base);
+        assert!(
+            free.iter().any(|a| *a > 10f64.to_radians()),
+            "{solver:?}: the free pen already points into the board"
+        );
+        let (r, f, held_angles) = pen_angles(&held);
+        for (k, a) in held_angles.iter().enumerate() {
+            assert!(
+                *a < 0.01f64.to_radians(),
+                "{solver:?} frame {k}: pen {}° off the axis",
+                a.to_degrees()
+            );
+        }
+        assert!(r.reached as f64 >= 0.97 * r.frames as f64, "{solver:?}");
+        assert_tip_on_targets(&f, &r, "joint_2");
+    }
+}

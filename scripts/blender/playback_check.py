@@ -10,7 +10,8 @@ mesh, it finds the Blender object made from it and, at several frames of the sce
 - matches Blender's vertices to the file's once (nearest file vertex at the first checked
   frame: the importer merges and reorders vertices) and reports the largest distance at every
   checked frame;
-- for meshes with morph targets: the share of faces Blender shades smooth, and the angle
+- for meshes whose morph weights the first animation plays: the share of faces Blender shades
+  smooth, and the angle
   between Blender's shading normals (loop normals) and the normals of the file's evaluated
   shape (corner-angle weighted, seams welded), 95th percentile and largest; and, for
   information, the same angle for the NORMAL the file itself carries at that time (what
@@ -127,8 +128,13 @@ def check(path, objects, fps_import, frames=5, tolerance=2e-3, max_angle=3.0, mi
     for node in g.mesh_nodes():
         n = g.doc["nodes"][node]
         mesh = g.doc["meshes"][n["mesh"]]
-        morph = any(p.get("targets") for p in mesh["primitives"])
-        animated = morph or "skin" in n or any(
+        has_targets = any(p.get("targets") for p in mesh["primitives"])
+        # Shading is checked on shapes the file plays (cloth bakes); a rig's own morph targets
+        # that the first animation leaves alone (a face's expressions) are the input's business.
+        morph = has_targets and any(
+            ch["target"].get("node") == node and ch["target"].get("path") == "weights"
+            for a in anims[:1] for ch in a["channels"])
+        animated = has_targets or "skin" in n or any(
             ch["target"].get("node") == node for a in anims[:1] for ch in a["channels"])
         if not animated and not morph:
             continue

@@ -11,10 +11,12 @@ use std::time::Instant;
 
 use glam::{DQuat, DVec2, DVec3};
 
+use crate::data::animation::{Clip, Skeleton, Trs};
 use crate::error::{Error, Result};
+use crate::export::skin::NodeFrames;
 use crate::export::skin::{write_chain_gltf, write_rig_gltf, IkFrames};
-use crate::ik::chain::{Chain, ROOT_HEIGHT_FRACTION};
-use crate::ik::constraints::Constraints;
+use crate::ik::chain::{Chain, Joint, Pose, ROOT_HEIGHT_FRACTION};
+use crate::ik::constraints::{Constraints, TipAxis};
 use crate::ik::solver::{IkSolver, SolverConfig};
 use crate::ik::{Ccd, Fabrik};
 use crate::io::rig::RigDocument;
@@ -150,6 +152,23 @@ pub struct IkJob {
         arg(long, value_name = "JOINT:KIND:RANGE", allow_hyphen_values = true)
     )]
     pub limit: Vec<String>,
+    /// Hold the pen along this world direction (e.g. into the board, `--tip-axis 0,0,1` for a
+    /// board facing -Z): after each frame's position solve, the end effector (whose rotation
+    /// moves no joint, so the tip stays on its target) turns by the shortest arc that points its
+    /// pen along the axis. The pen is the direction from the tip joint to its first child in a
+    /// rig, else the last bone continued.
+    #[serde(deserialize_with = "de::opt_vec3")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "X,Y,Z", value_parser = crate::spec::vec3_value, allow_hyphen_values = true))]
+    #[serde(alias = "tip-axis")]
+    pub tip_axis: Option<DVec3>,
+    /// Layer the bake on this animation of --rig (its name, or #N for the N-th): every node
+    /// outside the chain keeps it (sampled at each output frame's time, looping when the bake is
+    /// longer), the chain's root moves with its animated parents while the targets stay fixed in
+    /// the world, the chain's translations and scales and the end effector's rotation (unless
+    /// --tip-axis) follow it too, and the new animation keys the whole skeleton.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "NAME|#N"))]
+    #[serde(alias = "base-animation")]
+    pub base_animation: Option<String>,
     /// Frames per second of the animation.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::FPS, value_name = "F"))]
     pub fps: f64,
@@ -226,6 +245,8 @@ impl Default for IkJob {
             max_angle: None,
             pole: None,
             limit: Vec::new(),
+            tip_axis: None,
+            base_animation: None,
             fps: defaults::FPS,
             curve: None,
             text: None,
@@ -299,6 +320,79 @@ pub struct IkReport {
     pub files: Vec<PathBuf>,
     /// What the bake repaired or could not do as asked (printed on the terminal too).
     pub warnings: Vec<Text>,
+}
+
+/// A rig animation the bake is layered on (`--base-animation`).
+struct BaseLayer {
+    skeleton: Skeleton,
+    clip: Clip,
+    /// Nodes the clip animates.
+    animated: Vec<bool>,
+    /// The chain's nodes, root first.
+    chain_nodes: Vec<usize>,
+    /// The nodes the new animation keys, sorted: those the clip animates, those a skinning
+    /// viewer poses with the chain, and the chain.
+    keyed: Vec<usize>,
+}
+
+impl BaseLayer {
+    fn new(doc: &RigDocument, chain_nodes: &[usize], spec: &str) -> Result<Self> {
+        let skeleton = doc.skeleton()?;
+        let clip = doc.clip(spec, Param::BaseAnimation)?;
+        let animated = clip.animated_nodes(skeleton.len());
+        let mut keyed = crate::export::skin::posed_nodes(&doc.root, chain_nodes);
+        keyed.extend((0..animated.len()).filter(|&i| animated[i]));
+        keyed.extend_from_slice(chain_nodes);
+        keyed.sort_unstable();
+        keyed.dedup();
+        Ok(BaseLayer {
+            skeleton,
+            clip,
+            animated,
+            chain_nodes: chain_nodes.to_vec(),
+            keyed,
+        })
+    }
+
+    /// Every node's local transform at bake time `t` (seconds): the clip from its first key,
+    /// looped over its duration.
+    fn locals(&self, t: f64) -> Vec<Trs> {
+        let d = self.clip.duration();
+        let local_t = if d > 0.0 { t.rem_euclid(d) } else { 0.0 };
+        self.skeleton
+            .pose(Some(&self.clip), self.clip.start() + local_t)
+    }
+
+    /// The chain at one frame: its base is the animated world frame of the root's parent, its
+    /// joints take the animated translations and scales (their rest rotations, against which
+    /// limits are measured, stay).
+    fn chain_at(&self, template: &Chain, locals: &[Trs]) -> Result<Chain> {
+        let base = match self.skeleton.parents[self.chain_nodes[0]] {
+            Some(p) => self.skeleton.world(locals, &self.animated)[p],
+            None => glam::DAffine3::IDENTITY,
+        };
+        let joints = template
+            .joints()
+            .iter()
+            .zip(&self.chain_nodes)
+            .map(|(j, &node)| Joint {
+                translation: locals[node].translation,
+                scale: locals[node].scale,
+                ..j.clone()
+            })
+            .collect();
+        Chain::new(joints, base)
+    }
+
+    /// The chain's pose as the clip has it at one frame.
+    fn chain_pose(&self, chain: &Chain, locals: &[Trs]) -> Pose {
+        let mut pose = chain.rest_pose();
+        for (r, &node) in pose.rotations.iter_mut().zip(&self.chain_nodes) {
+            *r = locals[node].rotation;
+        }
+        chain.fk(&mut pose, 0);
+        pose
+    }
 }
 
 struct Setup {
@@ -375,6 +469,16 @@ fn setup_chain(job: &IkJob) -> Result<Setup> {
         rig: Some((doc, rc.nodes)),
         lab: false,
     })
+}
+
+/// The pen direction in a rig's tip node frame: towards its first child with a non-zero offset.
+fn tip_pen(doc: &RigDocument, tip: usize) -> Option<DVec3> {
+    doc.root.nodes[tip]
+        .children
+        .iter()
+        .flatten()
+        .map(|c| doc.local_transform(c.value()).translation)
+        .find(|t| t.length() > 1e-12)
 }
 
 /// The board's centre and the viewing direction (unit, from the reader's side into the board):
@@ -590,10 +694,37 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     if let Some(l) = job.lift {
         crate::spec::non_negative(Param::Lift, l)?;
     }
-    let setup = setup_chain(job)?;
+    let mut setup = setup_chain(job)?;
+    let layer = match (&job.base_animation, &setup.rig) {
+        (None, _) => None,
+        (Some(spec), Some((doc, nodes))) => Some(BaseLayer::new(doc, nodes, spec)?),
+        (Some(_), None) => {
+            return Err(Error::param_value(
+                Param::BaseAnimation,
+                text!("only applies with ", Param::Rig),
+            ))
+        }
+    };
+    // With a base animation, the chain and its start pose are the clip's at time 0.
+    let start = match &layer {
+        Some(l) => {
+            let locals = l.locals(0.0);
+            setup.chain = l.chain_at(&setup.chain, &locals)?;
+            Some(l.chain_pose(&setup.chain, &locals))
+        }
+        None => None,
+    };
     let chain = &setup.chain;
-    let constraints = Constraints::from_specs(chain, job.pole, &job.limit)?;
-    let rest = chain.rest_pose();
+    let mut constraints = Constraints::from_specs(chain, job.pole, &job.limit)?;
+    if let Some(axis) = job.tip_axis {
+        let pen = match &setup.rig {
+            Some((doc, nodes)) => tip_pen(doc, nodes[nodes.len() - 1]),
+            None => None,
+        }
+        .unwrap_or_else(|| TipAxis::continuing(chain));
+        constraints.tip_axis = Some(TipAxis::new(axis, pen)?);
+    }
+    let rest = start.unwrap_or_else(|| chain.rest_pose());
     let reach = chain.reach(&rest);
     let root = rest.position(0);
     let (center, view) = board(job, setup.lab, root, rest.tip(), reach)?;
@@ -664,8 +795,29 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
         Vec::new(),
     );
     let mut reached = 0;
+    let mut layered: Vec<Trs> = Vec::new();
     for (k, t) in targets.iter().enumerate() {
-        let r = solver.solve_with(chain, &mut pose, t.position, &constraints)?;
+        let moved;
+        let (frame_chain, locals) = match &layer {
+            Some(l) => {
+                // The base moves under the chain: refresh its frames, keep the solved rotations
+                // (warm start), and let the end effector follow the clip.
+                let locals = l.locals(k as f64 / job.fps);
+                moved = l.chain_at(chain, &locals)?;
+                let n = chain.len();
+                pose.rotations[n - 1] = locals[l.chain_nodes[n - 1]].rotation;
+                moved.fk(&mut pose, 0);
+                (&moved, Some(locals))
+            }
+            None => (chain, None),
+        };
+        let r = solver.solve_with(frame_chain, &mut pose, t.position, &constraints)?;
+        if let (Some(l), Some(mut locals)) = (&layer, locals) {
+            for (q, &node) in pose.rotations.iter().zip(&l.chain_nodes) {
+                locals[node].rotation = *q;
+            }
+            layered.extend(l.keyed.iter().map(|&node| locals[node]));
+        }
         rotations.extend_from_slice(&pose.rotations);
         tips.push(pose.tip());
         iterations.push(r.iterations);
@@ -688,7 +840,18 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     let written = match setup.rig {
         Some((doc, nodes)) => {
             warnings.extend(doc.warnings.iter().map(|w| Text::from(w.as_str())));
-            write_rig_gltf(&job.output, doc, chain, &nodes, &frames)?
+            let node_frames = layer.as_ref().map(|l| NodeFrames {
+                nodes: &l.keyed,
+                trs: &layered,
+            });
+            write_rig_gltf(
+                &job.output,
+                doc,
+                chain,
+                &nodes,
+                &frames,
+                node_frames.as_ref(),
+            )?
         }
         None => write_chain_gltf(&job.output, chain, &rest, &frames, &targets, &tips)?,
     };

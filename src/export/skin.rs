@@ -18,6 +18,7 @@ use gltf_json as json;
 use json::validation::Checked::Valid;
 
 use super::gltf_doc::{channel, primitive, sampler, GltfBuilder, Written};
+use crate::data::animation::Trs;
 use crate::data::chain::{Chain, Pose};
 use crate::error::Result;
 use crate::io::rig::RigDocument;
@@ -27,6 +28,16 @@ use crate::path::PenTarget;
 pub const HIDDEN_SCALE: f32 = 1e-4;
 /// Frames per trail piece.
 const TRAIL_PIECE: usize = 12;
+
+/// Per-frame local transforms of a set of nodes: an animation the IK is layered on, with the
+/// chain's solved rotations already in place. Written as one TRS key per frame and node.
+#[derive(Debug, Clone, Copy)]
+pub struct NodeFrames<'a> {
+    /// Node indices, sorted.
+    pub nodes: &'a [usize],
+    /// Local transforms, frame-major: `trs[k * nodes.len() + j]` is `nodes[j]` at frame k.
+    pub trs: &'a [Trs],
+}
 
 /// Baked joint rotations.
 #[derive(Debug, Clone, Copy)]
@@ -50,6 +61,20 @@ impl IkFrames<'_> {
         (0..self.frames())
             .map(|k| (k as f64 / self.fps) as f32)
             .collect()
+    }
+
+    /// Number of joints to key: all of them when the end effector turns (a tip axis), else all
+    /// but the end effector (its rotation moves nothing and stays at rest).
+    fn keyed(&self, chain: &Chain) -> usize {
+        let tip = self.joints - 1;
+        let rest = chain.joints()[tip].rotation;
+        let turns = (0..self.frames())
+            .any(|k| self.rotations[k * self.joints + tip].dot(rest).abs() < 1.0 - 1e-12);
+        if turns {
+            self.joints
+        } else {
+            tip
+        }
     }
 
     /// Normalised, sign-continuous keys of joint i.
@@ -364,7 +389,9 @@ pub fn write_chain_gltf(
     let (mut channels, mut samplers) = rotation_channels(
         &mut b,
         frames,
-        &(0..n - 1).map(|i| (i, joint_nodes[i])).collect::<Vec<_>>(),
+        &(0..frames.keyed(chain))
+            .map(|i| (i, joint_nodes[i]))
+            .collect::<Vec<_>>(),
     );
     let trail_mat = material(&mut b, "trail", [0.05, 0.05, 0.05, 1.0], 0.0);
     let mut pieces = Vec::new();
@@ -485,6 +512,7 @@ pub fn write_rig_gltf(
     chain: &Chain,
     nodes: &[usize],
     frames: &IkFrames<'_>,
+    layer: Option<&NodeFrames<'_>>,
 ) -> Result<Written> {
     let mut b = GltfBuilder::from_parts(doc.root, doc.bin);
     for (i, &node) in nodes.iter().enumerate() {
@@ -500,13 +528,32 @@ pub fn write_rig_gltf(
         }
     }
     lift_skinned_meshes_to_root(&mut b.root);
-    let animated: Vec<(usize, json::Index<json::Node>)> = nodes[..nodes.len() - 1]
+    if let Some(layer) = layer {
+        let (channels, samplers) = layer_channels(&mut b, frames, layer);
+        b.root.animations.insert(
+            0,
+            json::Animation {
+                name: Some(frames.name.into()),
+                channels,
+                samplers,
+                extensions: None,
+                extras: Default::default(),
+            },
+        );
+        super::playback::stamp(
+            &mut b.root,
+            &super::playback::Playback::frames(frames.fps, frames.frames(), frames.name),
+        );
+        return b.write(path);
+    }
+    let keyed = frames.keyed(chain);
+    let animated: Vec<(usize, json::Index<json::Node>)> = nodes[..keyed]
         .iter()
         .enumerate()
         .map(|(i, &nd)| (i, json::Index::new(nd as u32)))
         .collect();
     let (mut channels, mut samplers) = rotation_channels(&mut b, frames, &animated);
-    hold_channels(&mut b, frames, nodes, &mut channels, &mut samplers);
+    hold_channels(&mut b, frames, nodes, keyed, &mut channels, &mut samplers);
     b.root.animations.insert(
         0,
         json::Animation {
@@ -579,10 +626,11 @@ fn hold_channels(
     b: &mut GltfBuilder,
     frames: &IkFrames<'_>,
     chain_nodes: &[usize],
+    keyed: usize,
     channels: &mut Vec<json::animation::Channel>,
     samplers: &mut Vec<json::animation::Sampler>,
 ) {
-    let rotated = &chain_nodes[..chain_nodes.len() - 1];
+    let rotated = &chain_nodes[..keyed];
     let posed = posed_nodes(&b.root, chain_nodes);
     if posed.is_empty() {
         return;
@@ -632,6 +680,78 @@ fn hold_channels(
             json::accessor::Type::Vec3,
         );
     }
+}
+
+/// One LINEAR key per frame for the translation, rotation and scale of every node of `layer`
+/// (quaternions normalised and sign-continuous).
+fn layer_channels(
+    b: &mut GltfBuilder,
+    frames: &IkFrames<'_>,
+    layer: &NodeFrames<'_>,
+) -> (Vec<json::animation::Channel>, Vec<json::animation::Sampler>) {
+    let times = frames.times();
+    let input = b.scalars(&times, true);
+    let count = layer.nodes.len();
+    let mut channels = Vec::new();
+    let mut samplers = Vec::new();
+    for (j, &node) in layer.nodes.iter().enumerate() {
+        node_trs_f32(&mut b.root.nodes[node]);
+        let at = |k: usize| &layer.trs[k * count + j];
+        let translations: Vec<f32> = (0..times.len())
+            .flat_map(|k| at(k).translation.as_vec3().to_array())
+            .collect();
+        let scales: Vec<f32> = (0..times.len())
+            .flat_map(|k| at(k).scale.as_vec3().to_array())
+            .collect();
+        let mut rotations: Vec<[f32; 4]> = Vec::with_capacity(times.len());
+        for k in 0..times.len() {
+            let mut a = at(k).rotation.as_quat().normalize().to_array();
+            if let Some(prev) = rotations.last() {
+                let dot: f32 = prev.iter().zip(&a).map(|(x, y)| x * y).sum();
+                if dot < 0.0 {
+                    a = a.map(|x| -x);
+                }
+            }
+            rotations.push(a);
+        }
+        let index = json::Index::new(node as u32);
+        let mut push = |b: &mut GltfBuilder, property, bytes: Vec<u8>, type_| {
+            let output = b.accessor(
+                &bytes,
+                times.len(),
+                type_,
+                json::accessor::ComponentType::F32,
+                None,
+                None,
+                false,
+            );
+            channels.push(channel(samplers.len(), index, property));
+            samplers.push(sampler(
+                input,
+                output,
+                json::animation::Interpolation::Linear,
+            ));
+        };
+        push(
+            b,
+            json::animation::Property::Translation,
+            super::gltf_doc::f32_bytes(translations.into_iter()),
+            json::accessor::Type::Vec3,
+        );
+        push(
+            b,
+            json::animation::Property::Rotation,
+            super::gltf_doc::f32_bytes(rotations.into_iter().flatten()),
+            json::accessor::Type::Vec4,
+        );
+        push(
+            b,
+            json::animation::Property::Scale,
+            super::gltf_doc::f32_bytes(scales.into_iter()),
+            json::accessor::Type::Vec3,
+        );
+    }
+    (channels, samplers)
 }
 
 /// A node's translation, rotation (x, y, z, w; unit) and scale; a `matrix` is decomposed and

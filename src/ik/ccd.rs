@@ -5,13 +5,14 @@
 //! parent frame, `r_i ← R_{i-1}⁻¹ q R_{i-1} r_i` (the labs' `q r_i` is only right at the root or
 //! when every parent rotation is the identity), clamped to the joint's limit if it has one, then
 //! FK is refreshed from joint i. With a pole, each sweep ends by turning the chain about its
-//! root–tip line to face the pole ([`Constraints`]).
+//! root–tip line to face the pole ([`Constraints`]); under a twist limit, by the nearest swivel
+//! about that line the limits allow.
 
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
-use super::constraints::{clamp_rotation, face_pole, Constraints};
-use super::solver::{aim_constrained, begin, end, Begin, IkSolver, SolveReport, SolverConfig};
+use super::constraints::{face_pole, Constraints, Limit};
+use super::solver::{aim_swivelled, begin, end, Begin, IkSolver, SolveReport, SolverConfig};
 use crate::error::Result;
 
 /// The CCD solver.
@@ -42,18 +43,19 @@ impl IkSolver for Ccd {
                 let p = pose.position(i);
                 let (from, to) = (pose.tip() - p, target - p);
                 let mut moved = chain.rotate_joint_towards(pose, i, from, to);
-                if let Some(l) = c.limit(i) {
-                    moved |= clamp_rotation(chain, i, l, &mut pose.rotations[i]);
-                }
+                moved |= c.clamp(chain, i, &mut pose.rotations[i]);
                 if moved {
                     chain.fk(pose, i);
                 }
             }
-            if let Some(pole) = c.pole {
-                let mut p: Vec<DVec3> = (0..n).map(|i| pose.position(i)).collect();
-                if face_pole(&mut p, pole) {
-                    aim_constrained(chain, pose, &p, c);
-                }
+            let mut p: Vec<DVec3> = (0..n).map(|i| pose.position(i)).collect();
+            let faced = c.pole.is_some_and(|pole| face_pole(&mut p, pole));
+            if faced
+                || c.limits
+                    .iter()
+                    .any(|(_, l)| matches!(l, Limit::Twist { .. }))
+            {
+                aim_swivelled(chain, pose, &p, cfg.tolerance, c);
             }
         }
         Ok(end(chain, pose, start.as_ref(), target, iterations, cfg, c))

@@ -1,5 +1,6 @@
-//! Natural-joint constraints: a pole that keeps the chain's bend towards a point, and per-joint
-//! rotation limits (hinges and cones), enforced by both solvers.
+//! Natural-joint constraints: a pole that keeps the chain's bend towards a point, per-joint
+//! rotation limits (hinges, cones and twists), and the end effector's orientation (a tip axis),
+//! enforced by both solvers.
 //!
 //! Limits are measured from the joint's rest rotation, in its parent's frame. A joint's
 //! rotation `r` is written `r = d · rest` with `d` the rotation added to the rest pose:
@@ -9,6 +10,14 @@
 //!   (swing–twist decomposition of `d` about `a`).
 //! - **cone** `DEG`: the bone to the joint's child stays within `DEG` of its rest direction;
 //!   a larger swing is scaled back along the same great circle (twist kept).
+//! - **twist** `MIN..MAX`: the roll of `d` about the joint's rest bone axis `b` (the direction
+//!   to its child in the parent frame at rest) stays within `[MIN, MAX]`: with the swing–twist
+//!   decomposition `d = swing · twist(b, τ)` (the swing the shortest arc from `b` to the bone's
+//!   current direction), `τ` is clamped and the swing kept, so the bone's direction, and every
+//!   joint position, is unchanged. A joint may carry a twist limit together with a cone.
+//!
+//! The tip axis turns the end effector (whose rotation moves no joint, so the position solve
+//! is untouched) by the shortest arc that points its pen direction along a world axis.
 //!
 //! The pole (a world point) turns the chain rigidly about the line from its root to its tip, so
 //! the bend (the inner joints' offsets from that line) faces the pole; the tip and every bone
@@ -43,6 +52,70 @@ pub enum Limit {
         /// Half-angle of the cone (radians).
         max: f64,
     },
+    /// The roll about the joint's rest bone axis stays within `[min, max]` radians.
+    Twist {
+        /// Smallest twist (radians).
+        min: f64,
+        /// Largest twist (radians).
+        max: f64,
+    },
+}
+
+impl Limit {
+    fn kind(&self) -> &'static str {
+        match self {
+            Limit::Hinge { .. } => "hinge",
+            Limit::Cone { .. } => "cone",
+            Limit::Twist { .. } => "twist",
+        }
+    }
+
+    /// Clamping order on one joint: the direction first (hinge, cone), then the twist, which
+    /// keeps the direction.
+    fn order(&self) -> u8 {
+        u8::from(matches!(self, Limit::Twist { .. }))
+    }
+}
+
+/// The end effector's orientation: its pen direction is turned onto a world axis after every
+/// solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TipAxis {
+    /// The wanted world direction of the pen (unit).
+    pub axis: DVec3,
+    /// The pen's direction in the end effector's own frame (unit): for a rig, the direction to
+    /// the tip node's first child; otherwise the last bone's direction at rest.
+    pub pen: DVec3,
+}
+
+impl TipAxis {
+    /// Checks and normalises both directions.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (`--tip-axis`) for a zero or non-finite axis; [`Error::Chain`]
+    /// for a zero pen direction.
+    pub fn new(axis: DVec3, pen: DVec3) -> Result<Self> {
+        if !axis.is_finite() || axis.length() < 1e-12 {
+            return Err(Error::param_value(
+                Param::TipAxis,
+                format!("{axis}: must be a finite, non-zero direction"),
+            ));
+        }
+        let pen = pen
+            .try_normalize()
+            .ok_or_else(|| Error::Chain("the tip's pen direction is zero".into()))?;
+        Ok(TipAxis {
+            axis: axis.normalize(),
+            pen,
+        })
+    }
+
+    /// The pen direction of the end effector of a chain at rest: its last bone's direction in
+    /// the end effector's rest frame (the pen continues the last bone).
+    pub fn continuing(chain: &Chain) -> DVec3 {
+        let tip = &chain.joints()[chain.len() - 1];
+        (tip.rotation.inverse() * tip.translation).normalize_or(DVec3::Y)
+    }
 }
 
 /// The constraints of a solve.
@@ -56,23 +129,45 @@ pub enum Limit {
 pub struct Constraints {
     /// World point the chain's bend faces.
     pub pole: Option<DVec3>,
-    /// Limits by joint index (root = 0); the end effector cannot be limited.
+    /// Limits by joint index (root = 0), sorted by joint, a twist after the direction limit of
+    /// its joint; the end effector cannot be limited.
     pub limits: Vec<(usize, Limit)>,
+    /// The end effector's pen direction, applied after each solve.
+    pub tip_axis: Option<TipAxis>,
 }
 
 impl Constraints {
     /// No pole and no limit.
     pub fn is_empty(&self) -> bool {
-        self.pole.is_none() && self.limits.is_empty()
+        self.pole.is_none() && self.limits.is_empty() && self.tip_axis.is_none()
     }
 
-    /// The limit on joint `i`, if any.
-    pub fn limit(&self, i: usize) -> Option<&Limit> {
-        self.limits.iter().find(|(j, _)| *j == i).map(|(_, l)| l)
+    /// The limits on joint `i`, in clamping order.
+    pub fn limits_of(&self, i: usize) -> impl Iterator<Item = &Limit> {
+        self.limits
+            .iter()
+            .filter(move |(j, _)| *j == i)
+            .map(|(_, l)| l)
+    }
+
+    /// The hinge on joint `i`, if any.
+    pub fn hinge(&self, i: usize) -> Option<&Limit> {
+        self.limits_of(i).find(|l| matches!(l, Limit::Hinge { .. }))
+    }
+
+    /// Clamps joint `i`'s rotation to its limits; true if it changed.
+    pub(crate) fn clamp(&self, chain: &Chain, i: usize, r: &mut DQuat) -> bool {
+        let mut changed = false;
+        for l in self.limits_of(i) {
+            changed |= clamp_rotation(chain, i, l, r);
+        }
+        changed
     }
 
     /// Builds constraints from `--pole` and `--limit` specifications
-    /// (`JOINT:hinge:MIN..MAX[:X,Y,Z]`, `JOINT:cone:DEG`, degrees; JOINT a joint name).
+    /// (`JOINT:hinge:MIN..MAX[:X,Y,Z]`, `JOINT:cone:DEG`, `JOINT:twist:MIN..MAX`, degrees; JOINT
+    /// a joint name). A joint takes one hinge or one cone, and one twist (not with a hinge, which
+    /// already fixes the twist).
     ///
     /// A hinge's axis is, in order: the `X,Y,Z` given (world direction in the rest pose); with a
     /// pole, the normal of the plane through the bone into the joint and the pole, turned so that
@@ -82,8 +177,9 @@ impl Constraints {
     ///
     /// # Errors
     /// [`Error::InvalidOption`] (`--limit`, `--pole`) naming the specification: malformed, an
-    /// unknown joint (listing the chain's), the end effector, two limits on a joint, an empty or
-    /// out-of-range interval, or a hinge whose axis cannot be derived.
+    /// unknown joint (listing the chain's), the end effector, two limits of a kind (or a hinge
+    /// and a twist) on a joint, an empty or out-of-range interval, or a hinge whose axis cannot
+    /// be derived.
     pub fn from_specs(chain: &Chain, pole: Option<DVec3>, specs: &[String]) -> Result<Self> {
         if let Some(p) = pole {
             if !p.is_finite() {
@@ -97,7 +193,8 @@ impl Constraints {
             let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
             if parts.len() < 3 {
                 return Err(bad(
-                    "expected JOINT:hinge:MIN..MAX[:X,Y,Z] or JOINT:cone:DEG".into(),
+                    "expected JOINT:hinge:MIN..MAX[:X,Y,Z], JOINT:cone:DEG or JOINT:twist:MIN..MAX"
+                        .into(),
                 ));
             }
             let i = chain
@@ -117,9 +214,6 @@ impl Constraints {
                     "`{}` is the end effector: its rotation moves no bone",
                     parts[0]
                 )));
-            }
-            if limits.iter().any(|(j, _)| *j == i) {
-                return Err(bad(format!("`{}` already has a limit", parts[0])));
             }
             let number = |s: &str| {
                 s.trim()
@@ -185,12 +279,54 @@ impl Constraints {
                         max: deg.to_radians(),
                     }
                 }
-                other => return Err(bad(format!("`{other}`: expected hinge or cone"))),
+                "twist" => {
+                    if parts.len() > 3 {
+                        return Err(bad("too many fields".into()));
+                    }
+                    let (lo, hi) = parts[2]
+                        .split_once("..")
+                        .ok_or_else(|| bad("a twist needs MIN..MAX in degrees".into()))?;
+                    let (min, max) = (number(lo)?, number(hi)?);
+                    if min > max || min < -180.0 || max > 180.0 {
+                        return Err(bad(format!(
+                            "{min}..{max}: need MIN <= MAX within -180..180"
+                        )));
+                    }
+                    Limit::Twist {
+                        min: min.to_radians(),
+                        max: max.to_radians(),
+                    }
+                }
+                other => return Err(bad(format!("`{other}`: expected hinge, cone or twist"))),
             };
+            for (_, l) in limits.iter().filter(|(j, _)| *j == i) {
+                let clash = l.order() == limit.order()
+                    || matches!(
+                        (l, &limit),
+                        (Limit::Hinge { .. }, Limit::Twist { .. })
+                            | (Limit::Twist { .. }, Limit::Hinge { .. })
+                    );
+                if clash {
+                    return Err(bad(format!(
+                        "`{}` already has a {} limit{}",
+                        parts[0],
+                        l.kind(),
+                        if l.order() == limit.order() {
+                            ""
+                        } else {
+                            " (a hinge fixes the twist)"
+                        }
+                    )));
+                }
+            }
             limits.push((i, limit));
         }
-        limits.sort_by_key(|(i, _)| *i);
-        Ok(Constraints { pole, limits })
+        limits.sort_by_key(|(i, l)| (*i, l.order()));
+        Ok(Constraints {
+            pole,
+            limits,
+            tip_axis: None,
+        })
     }
 }
 
@@ -241,6 +377,21 @@ pub(crate) fn clamp_rotation(chain: &Chain, i: usize, limit: &Limit, r: &mut DQu
             };
             *r = (DQuat::from_axis_angle(axis, angle.clamp(min, max)) * rest).normalize();
         }
+        Limit::Twist { min, max } => {
+            let b0 = child_offset(chain, i, rest).normalize();
+            let d = *r * rest.inverse();
+            let d = if d.w < 0.0 { -d } else { d };
+            let tau = 2.0 * DVec3::new(d.x, d.y, d.z).dot(b0).atan2(d.w);
+            let tau = if tau > std::f64::consts::PI {
+                tau - std::f64::consts::TAU
+            } else {
+                tau
+            };
+            if tau < min || tau > max {
+                let swing = d * DQuat::from_axis_angle(b0, tau).inverse();
+                *r = (swing * DQuat::from_axis_angle(b0, tau.clamp(min, max)) * rest).normalize();
+            }
+        }
         Limit::Cone { max } => {
             let b0 = child_offset(chain, i, rest).normalize();
             let b = child_offset(chain, i, *r).normalize();
@@ -270,6 +421,23 @@ pub(crate) fn clamp_all(chain: &Chain, pose: &mut Pose, c: &Constraints) -> bool
         chain.fk(pose, i);
     }
     first.is_some()
+}
+
+/// Turns the end effector by the shortest arc that points its pen along the tip axis; true if
+/// it turned. Joint positions do not change.
+pub(crate) fn orient_tip(chain: &Chain, pose: &mut Pose, c: &Constraints) -> bool {
+    let Some(tip) = c.tip_axis else {
+        return false;
+    };
+    let n = chain.len();
+    let j = &chain.joints()[n - 1];
+    let inv = chain.parent_linear(pose, n - 1).inverse();
+    let current = pose.rotations[n - 1] * (j.scale * tip.pen);
+    let turned = super::chain::rotate_local(&mut pose.rotations[n - 1], current, inv * tip.axis);
+    if turned {
+        chain.fk(pose, n - 1);
+    }
+    turned
 }
 
 /// Turns the inner joint positions `p[1..n-1]` rigidly about the line from `p[0]` to `p[n-1]`
@@ -413,7 +581,9 @@ mod tests {
             ("joint_1:hinge:10", "MIN..MAX"),
             ("elbow:cone:30", "joint_0, joint_1, joint_2"),
             ("joint_2:cone:30", "end effector"),
-            ("joint_1:twist:30", "hinge or cone"),
+            ("joint_1:spin:30", "hinge, cone or twist"),
+            ("joint_1:twist:30", "MIN..MAX"),
+            ("joint_0:twist:-200..10", "MIN <= MAX"),
             ("joint_1:hinge:50..10", "MIN <= MAX"),
             ("joint_1:cone:x", "`x`"),
         ] {

@@ -11,13 +11,14 @@
 //! Under [`Constraints`] the passes' positions are first turned to face the pole, and the
 //! rebuild clamps each joint to its limit before aiming the next (a hinged joint's parent first
 //! twists about its bone so the hinge can bend the right way), so every iteration ends in a pose
-//! that respects the limits.
+//! that respects the limits. Under a twist limit that roll may be out of range: the bend plane
+//! then swivels about the root–tip line to the nearest one the limits allow.
 
 use glam::DVec3;
 
 use super::chain::{Chain, Pose};
 use super::constraints::{face_pole, Constraints};
-use super::solver::{aim_constrained, begin, end, Begin, IkSolver, SolveReport, SolverConfig};
+use super::solver::{aim_swivelled, begin, end, Begin, IkSolver, SolveReport, SolverConfig};
 use crate::error::Result;
 
 /// The FABRIK solver.
@@ -70,7 +71,7 @@ impl IkSolver for Fabrik {
             if let Some(pole) = c.pole {
                 face_pole(&mut p, pole);
             }
-            aim_constrained(chain, pose, &p, c);
+            aim_swivelled(chain, pose, &p, cfg.tolerance, c);
         }
         Ok(end(chain, pose, start.as_ref(), target, iterations, cfg, c))
     }

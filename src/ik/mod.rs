@@ -30,6 +30,6 @@ pub mod solver;
 pub use crate::bake::ik::SolverKind;
 pub use ccd::Ccd;
 pub use chain::{Chain, Joint, Pose};
-pub use constraints::{Constraints, Limit};
+pub use constraints::{Constraints, Limit, TipAxis};
 pub use fabrik::Fabrik;
 pub use solver::{IkSolver, SolveReport, SolverConfig};

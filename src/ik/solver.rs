@@ -167,7 +167,18 @@ pub(crate) fn aim_at_positions(chain: &Chain, pose: &mut Pose, desired: &[DVec3]
 /// own bone so the hinge can bend towards the wanted direction; each joint is clamped to its
 /// limit before the next is aimed.
 pub(crate) fn aim_constrained(chain: &Chain, pose: &mut Pose, desired: &[DVec3], c: &Constraints) {
+    aim_constrained_twist(chain, pose, desired, c);
+}
+
+/// [`aim_constrained`], returning whether a twist limit changed a rotation.
+fn aim_constrained_twist(
+    chain: &Chain,
+    pose: &mut Pose,
+    desired: &[DVec3],
+    c: &Constraints,
+) -> bool {
     let n = chain.len();
+    let mut twist_bound = false;
     for i in 0..n - 1 {
         let parent = if i == 0 {
             chain.base()
@@ -181,7 +192,7 @@ pub(crate) fn aim_constrained(chain: &Chain, pose: &mut Pose, desired: &[DVec3],
         let current = pose.rotations[i] * (chain.joints()[i].scale * j1.translation);
         let wanted = inv * (desired[i + 1] - p_i);
         super::chain::rotate_local(&mut pose.rotations[i], current, wanted);
-        if let (Some(Limit::Hinge { axis, min, max }), true) = (c.limit(i + 1), i + 2 < n) {
+        if let (Some(Limit::Hinge { axis, min, max }), true) = (c.hinge(i + 1), i + 2 < n) {
             let frame = parent * chain.local(i, pose.rotations[i]);
             let rest_child = j1.rotation * (j1.scale * chain.joints()[i + 2].translation);
             let bone = desired[i + 1] - p_i;
@@ -198,12 +209,71 @@ pub(crate) fn aim_constrained(chain: &Chain, pose: &mut Pose, desired: &[DVec3],
                 }
             }
         }
-        if let Some(l) = c.limit(i) {
-            constraints::clamp_rotation(chain, i, l, &mut pose.rotations[i]);
+        for l in c.limits_of(i) {
+            let changed = constraints::clamp_rotation(chain, i, l, &mut pose.rotations[i]);
+            twist_bound |= changed && matches!(l, Limit::Twist { .. });
         }
         pose.world[i] = parent * chain.local(i, pose.rotations[i]);
     }
     pose.world[n - 1] = pose.world[n - 2] * chain.local(n - 1, pose.rotations[n - 1]);
+    twist_bound
+}
+
+/// [`aim_constrained`] choosing the swivel of the inner joints about the root–tip line when a
+/// twist limit binds. A twist-limited joint cannot roll its child's hinge into an arbitrary
+/// bend plane, so the bend plane the passes (or the pole) chose may be out of its reach; other
+/// swivels may not be. The swivel asked for (0) is kept when no twist limit changes a rotation or
+/// the limits still let the tip land on `desired`'s tip (within `tolerance / 100`); otherwise
+/// swivels of ±15°, ±30° … ±180° are tried, then ±5° and ±1° steps around the best: the pose
+/// whose tip lands nearest `desired`'s tip wins, ties going to the smallest swivel.
+pub(crate) fn aim_swivelled(
+    chain: &Chain,
+    pose: &mut Pose,
+    desired: &[DVec3],
+    tolerance: f64,
+    c: &Constraints,
+) {
+    let n = desired.len();
+    let start = pose.clone();
+    let bound = aim_constrained_twist(chain, pose, desired, c);
+    let tie = tolerance / 100.0;
+    let e0 = pose.tip().distance(desired[n - 1]);
+    let axis = (desired[n - 1] - desired[0]).try_normalize();
+    let (true, true, Some(axis)) = (bound && e0 > tie, n >= 3, axis) else {
+        return;
+    };
+    let root = desired[0];
+    let mut trial_p = desired.to_vec();
+    let mut trial = start.clone();
+    let mut best_pose = pose.clone();
+    let mut best = (e0, 0.0);
+    let mut try_swivel = |phi: f64, best: &mut (f64, f64), best_pose: &mut Pose| {
+        let q = glam::DQuat::from_axis_angle(axis, phi);
+        for (t, d) in trial_p[1..n - 1].iter_mut().zip(&desired[1..n - 1]) {
+            *t = root + q * (*d - root);
+        }
+        trial.clone_from(&start);
+        aim_constrained(chain, &mut trial, &trial_p, c);
+        let e = trial.tip().distance(desired[n - 1]);
+        if e < best.0 - tie || (e <= best.0 + tie && phi.abs() < best.1.abs()) {
+            *best = (e, phi);
+            best_pose.clone_from(&trial);
+        }
+    };
+    for step in [15.0, 5.0, 1.0f64] {
+        let centre = best.1;
+        let count = if step == 15.0 { 12 } else { 2 };
+        for k in 1..=count {
+            for sign in [1.0, -1.0] {
+                try_swivel(
+                    centre + sign * (k as f64 * step).to_radians(),
+                    &mut best,
+                    &mut best_pose,
+                );
+            }
+        }
+    }
+    *pose = best_pose;
 }
 
 /// How a solve starts, shared by every solver.
@@ -259,7 +329,7 @@ pub(crate) fn end(
 }
 
 /// Applies the optional per-frame rotation limit relative to `start`, then the joint limits,
-/// and computes the final report.
+/// then the tip axis, and computes the final report.
 pub(crate) fn finish(
     chain: &Chain,
     pose: &mut Pose,
@@ -273,6 +343,7 @@ pub(crate) fn finish(
         chain.clamp_to(pose, start, max);
     }
     constraints::clamp_all(chain, pose, c);
+    constraints::orient_tip(chain, pose, c);
     let error = pose.tip().distance(target);
     SolveReport {
         iterations,
