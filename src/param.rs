@@ -144,6 +144,8 @@ params! {
     PinTo => "pin_to",
     /// Whether the character's body is a collider.
     BodyCollider => "body_collider",
+    /// Body meshes the garment ignores.
+    BodyExclude => "body_exclude",
     /// Write the garment alone.
     GarmentOnly => "garment_only",
     /// Metres per unit of the rig.

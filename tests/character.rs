@@ -136,5 +136,23 @@ fn character_options_are_checked_before_baking() {
         ..cape_job(out)
     });
     assert!(e.to_string().contains("b_Tail99"), "{e}");
+    // --body-exclude: an unknown name lists the body meshes; excluding Fox's only mesh leaves
+    // nothing to bind the surface pins to.
+    let e = err(ClothJob {
+        body_exclude: vec!["Tail".into()],
+        ..cape_job(out)
+    });
+    assert_eq!(e.param(), Some(Param::BodyExclude));
+    assert!(
+        e.to_string().ends_with("`Tail` names no body mesh of {} (its body meshes: fox1)"
+            .replace("{}", &common::mesh_path("Fox.glb").display().to_string())
+            .as_str()),
+        "{e}"
+    );
+    let e = err(ClothJob {
+        body_exclude: vec!["fox1".into()],
+        ..cape_job(out)
+    });
+    assert_eq!(e.param(), Some(Param::Rig), "{e}");
     assert!(!out.exists());
 }

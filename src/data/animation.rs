@@ -297,6 +297,8 @@ impl Skeleton {
 pub struct SkinnedMesh {
     /// Name (mesh or node name).
     pub name: String,
+    /// Index of the node that carries the mesh.
+    pub node: usize,
     /// Bind-pose positions (the mesh's own coordinates).
     pub positions: Vec<DVec3>,
     /// Triangles (indices into `positions`).
@@ -465,6 +467,7 @@ mod tests {
         // stays where it is at rest and moves rigidly with the node.
         let mesh = SkinnedMesh {
             name: "m".into(),
+            node: 1,
             positions: vec![DVec3::new(1.5, 2.0, 0.0)],
             triangles: vec![],
             joints: vec![1],

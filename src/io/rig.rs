@@ -496,6 +496,7 @@ impl RigDocument {
             };
             let mut sm = SkinnedMesh {
                 name: name.clone(),
+                node: node.index(),
                 positions: Vec::new(),
                 triangles: Vec::new(),
                 joints,

@@ -16,6 +16,7 @@ use crate::error::{Error, Result};
 use crate::export::character::{encode_character_gltf, CharacterOptions};
 use crate::export::morph::encode_morph_gltf;
 use crate::export::{MorphOptions, RenderFrames, Written};
+use crate::data::animation::SkinnedMesh;
 use crate::io::rig::RigDocument;
 use crate::param::Param;
 use crate::spec::positive;
@@ -91,7 +92,7 @@ pub fn bake_on_character(
     let rig_warnings = doc.warnings.clone();
     let clip = doc.clip(job.animation.as_deref().unwrap_or("#0"), Param::Animation)?;
     let skeleton = doc.skeleton()?;
-    let bodies = doc.body_meshes()?;
+    let bodies = exclude_bodies(&doc, doc.body_meshes()?, &job.body_exclude)?;
     let cycle = clip.duration();
     let fps = positive(Param::Fps, job.fps.unwrap_or(super::defaults::FPS))?;
     // Whole frames per loop, so every loop starts on a frame: the bake's rate is adjusted to
@@ -244,4 +245,40 @@ pub fn bake_on_character(
     out.warnings
         .extend(rig_warnings.into_iter().map(|w| text!(w)));
     Ok(out)
+}
+
+/// The body meshes less those `exclude` names (a mesh name, or a node as `NAME`, `#N` or
+/// Blender's `Node_N`). A name that is no body mesh is an error listing the body meshes.
+fn exclude_bodies(
+    doc: &RigDocument,
+    bodies: Vec<SkinnedMesh>,
+    exclude: &[String],
+) -> Result<Vec<SkinnedMesh>> {
+    let mut drop = vec![false; bodies.len()];
+    for name in exclude {
+        let node = doc.find_node(name).ok();
+        let mut found = false;
+        for (d, b) in drop.iter_mut().zip(&bodies) {
+            if b.name == *name || Some(b.node) == node {
+                *d = true;
+                found = true;
+            }
+        }
+        if !found {
+            let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
+            return Err(Error::param_value(
+                Param::BodyExclude,
+                format!(
+                    "`{name}` names no body mesh of {} (its body meshes: {})",
+                    doc.path.display(),
+                    names.join(", ")
+                ),
+            ));
+        }
+    }
+    Ok(bodies
+        .into_iter()
+        .zip(drop)
+        .filter_map(|(b, d)| (!d).then_some(b))
+        .collect())
 }

@@ -360,6 +360,14 @@ pub struct ClothJob {
     /// Whether the character's skinned meshes are a (moving) collider.
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Switch::On, help_heading = "Character"))]
     pub body_collider: Switch,
+    /// Body meshes the garment ignores (repeatable; node or mesh names, or `#N` node indices):
+    /// they neither collide with it nor carry its pins, e.g. hands that hang through a skirt.
+    #[serde(deserialize_with = "de::string_list")]
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_name = "NAME", value_delimiter = ',', requires = "rig", help_heading = "Character")
+    )]
+    pub body_exclude: Vec<String>,
     /// Write only the garment (its morph animation keyed on the animation's times), not the
     /// character.
     #[cfg_attr(feature = "cli", arg(long, help_heading = "Character"))]
@@ -438,6 +446,7 @@ impl Default for ClothJob {
             blend_in: defaults::BLEND_IN,
             pin_to: None,
             body_collider: Switch::On,
+            body_exclude: Vec::new(),
             garment_only: false,
             rig_scale: 1.0,
         }
