@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Checks a garment baked on a character (`scenebake cloth --rig`) from the file alone.
 
-    python3 scripts/check_character.py FILE.glb --garment NAME --body NAME --rest GARMENT.obj
+    python3 scripts/check_character.py FILE.glb --garment NAME --body NAME [NAME...] --rest GARMENT.obj
         --units M --pin X0,Y0,Z0,X1,Y1,Z1 [--thickness M] [--json OUT]
 
 Everything is evaluated by scripts/blender/gltf_eval.py (plain numpy, not scenebake's code):
@@ -107,7 +107,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("file")
     ap.add_argument("--garment", required=True)
-    ap.add_argument("--body", required=True)
+    ap.add_argument("--body", required=True, nargs="+",
+                    help="the body's mesh nodes (several: their triangles together)")
     ap.add_argument("--rest", required=True)
     ap.add_argument("--units", type=float, default=1.0)
     ap.add_argument("--pin", required=True)
@@ -120,7 +121,22 @@ def main():
     g = gltf_eval.Gltf(a.file)
     nodes = g.doc["nodes"]
     garment = next(i for i, n in enumerate(nodes) if n.get("name") == a.garment and "mesh" in n)
-    body = next(i for i, n in enumerate(nodes) if n.get("name") == a.body and "mesh" in n)
+    bodies = []
+    for name in a.body:
+        found = [i for i, n in enumerate(nodes) if n.get("name") == name and "mesh" in n]
+        if not found:
+            sys.exit(f"check_character: no mesh node named {name}")
+        bodies.append(found[0])
+
+    def body_at(t):
+        pos, tris, base = [], [], 0
+        for b in bodies:
+            p, tr = g.evaluate(b, 0, t)
+            pos.append(p)
+            tris.append(tr + base)
+            base += len(p)
+        return np.concatenate(pos), np.concatenate(tris)
+
     rec = g.playback()
     fps, first, last = rec["fps"], rec["frame_start"], rec["frame_end"]
     rest, faces = read_obj(a.rest)
@@ -151,7 +167,7 @@ def main():
     for f in range(first, last + 1):
         t = f / fps
         x, _ = g.evaluate(garment, 0, t)
-        bpos, btris = g.evaluate(body, 0, t)
+        bpos, btris = body_at(t)
         x, bpos = x * a.units, bpos * a.units
         if len(x) != len(rest):
             sys.exit(f"check_character: the garment has {len(x)} vertices, the rest OBJ {len(rest)}")

@@ -94,6 +94,7 @@ fn a_cape_rides_the_walking_fox_and_stays_outside_its_body() {
     assert!(ok, "{figures}");
     assert_eq!(figures["frames"], 22);
     assert!((figures["loop_seam_m"].as_f64().unwrap() - character.loop_seam).abs() < 1e-6);
+    every_joint_is_posed(&out);
 
     // Without the body collider the cape falls into the fox, and the check sees it.
     let out = dir.path().join("through.glb");
@@ -144,9 +145,11 @@ fn character_options_are_checked_before_baking() {
     });
     assert_eq!(e.param(), Some(Param::BodyExclude));
     assert!(
-        e.to_string().ends_with("`Tail` names no body mesh of {} (its body meshes: fox1)"
-            .replace("{}", &common::mesh_path("Fox.glb").display().to_string())
-            .as_str()),
+        e.to_string().ends_with(
+            "`Tail` names no body mesh of {} (its body meshes: fox1)"
+                .replace("{}", &common::mesh_path("Fox.glb").display().to_string())
+                .as_str()
+        ),
         "{e}"
     );
     let e = err(ClothJob {
@@ -155,4 +158,60 @@ fn character_options_are_checked_before_baking() {
     });
     assert_eq!(e.param(), Some(Param::Rig), "{e}");
     assert!(!out.exists());
+}
+
+/// Every joint of the written skin has translation, rotation and scale channels in the first
+/// animation (Blender keeps a bone's pose from the previously played action where the active one
+/// has no key), and those Walk does not key hold the input's node transforms (read from Fox.glb
+/// with the gltf crate).
+fn every_joint_is_posed(out: &Path) {
+    use gltf::animation::util::ReadOutputs;
+    use gltf::animation::Property;
+    let (doc, buffers, _) = gltf::import(out).unwrap();
+    let (input, _, _) = gltf::import(common::mesh_path("Fox.glb")).unwrap();
+    let baked = doc.animations().next().unwrap();
+    let walk = input
+        .animations()
+        .find(|a| a.name() == Some("Walk"))
+        .unwrap();
+    fn channel<'a>(
+        a: &gltf::Animation<'a>,
+        node: usize,
+        p: gltf::animation::Property,
+    ) -> Option<gltf::animation::Channel<'a>> {
+        a.channels()
+            .find(|c| c.target().node().index() == node && c.target().property() == p)
+    }
+    let mut held = 0;
+    for joint in doc.skins().flat_map(|s| s.joints().collect::<Vec<_>>()) {
+        let (t, r, s) = input
+            .nodes()
+            .nth(joint.index())
+            .unwrap()
+            .transform()
+            .decomposed();
+        for p in [Property::Translation, Property::Rotation, Property::Scale] {
+            let ch = channel(&baked, joint.index(), p)
+                .unwrap_or_else(|| panic!("joint #{} has no {p:?} channel", joint.index()));
+            if channel(&walk, joint.index(), p).is_some() {
+                continue;
+            }
+            held += 1;
+            let close = |v: &[f32], w: &[f32]| v.iter().zip(w).all(|(a, b)| (a - b).abs() < 1e-6);
+            match ch
+                .reader(|b| Some(&buffers[b.index()]))
+                .read_outputs()
+                .unwrap()
+            {
+                ReadOutputs::Translations(it) => it.for_each(|v| assert!(close(&v, &t))),
+                ReadOutputs::Rotations(it) => it.into_f32().for_each(|v| assert!(close(&v, &r))),
+                ReadOutputs::Scales(it) => it.for_each(|v| assert!(close(&v, &s))),
+                ReadOutputs::MorphTargetWeights(_) => panic!("weights on a joint"),
+            }
+        }
+    }
+    assert!(
+        held > 0,
+        "Walk keys every joint fully: nothing held to check"
+    );
 }

@@ -15,7 +15,7 @@ use gltf_json as json;
 
 use super::gltf_doc::{channel, sampler, GltfBuilder};
 use super::morph::{push_morph, CacheStats, EncodedMorph, MorphOptions};
-use super::skin::lift_skinned_meshes_to_root;
+use super::skin::{lift_skinned_meshes_to_root, posed_nodes, push_hold_channels};
 use super::RenderFrames;
 use crate::data::animation::{Clip, Interpolation, Property};
 use crate::error::Result;
@@ -59,6 +59,43 @@ pub fn encode_character_gltf(
         .expect("push_morph adds the weights animation last");
 
     let mut animation = driving_animation(&mut b, character);
+    // Every joint of the skins (and the nodes between them) gets a defined pose: Blender keeps a
+    // bone's pose from the previously active action where this one has no key for it.
+    let joints: Vec<usize> = b
+        .root
+        .skins
+        .iter()
+        .flat_map(|s| s.joints.iter().map(|j| j.value()))
+        .collect();
+    let posed = posed_nodes(&b.root, &joints);
+    let keyed = |node: usize, p: json::animation::Property| {
+        character.clip.tracks.iter().any(|t| {
+            t.node == node
+                && matches!(
+                    (t.property, p),
+                    (
+                        Property::Translation,
+                        json::animation::Property::Translation
+                    ) | (Property::Rotation, json::animation::Property::Rotation)
+                        | (Property::Scale, json::animation::Property::Scale)
+                )
+        })
+    };
+    let start = character.clip.start();
+    let end = start + character.cycles.max(1) as f64 * character.clip.duration();
+    let times: Vec<f32> = if end > start {
+        vec![start as f32, end as f32]
+    } else {
+        vec![start as f32]
+    };
+    push_hold_channels(
+        &mut b,
+        &posed,
+        &times,
+        &keyed,
+        &mut animation.channels,
+        &mut animation.samplers,
+    );
     let offset = animation.samplers.len() as u32;
     for mut ch in garment.channels {
         ch.sampler = json::Index::new(ch.sampler.value() as u32 + offset);

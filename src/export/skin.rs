@@ -632,16 +632,51 @@ fn hold_channels(
 ) {
     let rotated = &chain_nodes[..keyed];
     let posed = posed_nodes(&b.root, chain_nodes);
-    if posed.is_empty() {
-        return;
-    }
     let end = frames.times().last().copied().unwrap_or(0.0);
     let times: Vec<f32> = if end > 0.0 { vec![0.0, end] } else { vec![0.0] };
-    let input = b.scalars(&times, true);
-    for node in posed {
+    let skip = |node: usize, p| p == json::animation::Property::Rotation && rotated.contains(&node);
+    push_hold_channels(b, &posed, &times, &skip, channels, samplers);
+}
+
+/// Constant LINEAR channels (the node's own transform, keyed at each of `times`, seconds) for
+/// the translation, rotation and scale of each of `nodes`, except where `skip(node, property)`.
+/// Nodes stored as a `matrix` are rewritten as translation/rotation/scale.
+pub(crate) fn push_hold_channels(
+    b: &mut GltfBuilder,
+    nodes: &[usize],
+    times: &[f32],
+    skip: &dyn Fn(usize, json::animation::Property) -> bool,
+    channels: &mut Vec<json::animation::Channel>,
+    samplers: &mut Vec<json::animation::Sampler>,
+) {
+    if nodes.is_empty() {
+        return;
+    }
+    let input = b.scalars(times, true);
+    for &node in nodes {
         let (t, r, s) = node_trs_f32(&mut b.root.nodes[node]);
         let index = json::Index::new(node as u32);
-        let mut push = |b: &mut GltfBuilder, property, bytes: Vec<u8>, type_| {
+        let repeat = |v: &[f32]| super::gltf_doc::f32_bytes(times.iter().flat_map(|_| v.to_vec()));
+        for (property, bytes, type_) in [
+            (
+                json::animation::Property::Translation,
+                repeat(&t),
+                json::accessor::Type::Vec3,
+            ),
+            (
+                json::animation::Property::Rotation,
+                repeat(&r),
+                json::accessor::Type::Vec4,
+            ),
+            (
+                json::animation::Property::Scale,
+                repeat(&s),
+                json::accessor::Type::Vec3,
+            ),
+        ] {
+            if skip(node, property) {
+                continue;
+            }
             let output = b.accessor(
                 &bytes,
                 times.len(),
@@ -657,28 +692,7 @@ fn hold_channels(
                 output,
                 json::animation::Interpolation::Linear,
             ));
-        };
-        let repeat = |v: &[f32]| super::gltf_doc::f32_bytes(times.iter().flat_map(|_| v.to_vec()));
-        push(
-            b,
-            json::animation::Property::Translation,
-            repeat(&t),
-            json::accessor::Type::Vec3,
-        );
-        if !rotated.contains(&node) {
-            push(
-                b,
-                json::animation::Property::Rotation,
-                repeat(&r),
-                json::accessor::Type::Vec4,
-            );
         }
-        push(
-            b,
-            json::animation::Property::Scale,
-            repeat(&s),
-            json::accessor::Type::Vec3,
-        );
     }
 }
 

@@ -12,11 +12,11 @@ use super::{
 use crate::cloth::collide::Collider;
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::{make_solver, simulate_driven, Driven, FrameCache, SolverKind};
+use crate::data::animation::SkinnedMesh;
 use crate::error::{Error, Result};
 use crate::export::character::{encode_character_gltf, CharacterOptions};
 use crate::export::morph::encode_morph_gltf;
 use crate::export::{MorphOptions, RenderFrames, Written};
-use crate::data::animation::SkinnedMesh;
 use crate::io::rig::RigDocument;
 use crate::param::Param;
 use crate::spec::positive;

@@ -365,7 +365,13 @@ pub struct ClothJob {
     #[serde(deserialize_with = "de::string_list")]
     #[cfg_attr(
         feature = "cli",
-        arg(long, value_name = "NAME", value_delimiter = ',', requires = "rig", help_heading = "Character")
+        arg(
+            long,
+            value_name = "NAME",
+            value_delimiter = ',',
+            requires = "rig",
+            help_heading = "Character"
+        )
     )]
     pub body_exclude: Vec<String>,
     /// Write only the garment (its morph animation keyed on the animation's times), not the
