@@ -526,9 +526,16 @@ def helper_failures(path, info, objects):
     if abs(scene.render.fps / scene.render.fps_base - fps) > 1e-6 * fps:
         failures.append(f"--helper: scene fps {scene.render.fps / scene.render.fps_base:g}, "
                         f"the bake's is {fps:g}")
-    if (scene.frame_start, scene.frame_end) != (start, end):
+    # The importer keys frame f of the bake at Blender frame f / fps × round(fps) (the same
+    # frame at an integer fps); the range must be the whole frames that hold the first and last.
+    fps_int = max(1, round(fps))
+    want = (math.floor(start / fps * fps_int + 1e-6), math.ceil(end / fps * fps_int - 1e-6))
+    if (scene.frame_start, scene.frame_end) != want:
         failures.append(f"--helper: scene frames {scene.frame_start}-{scene.frame_end}, "
-                        f"the bake's are {start}-{end}")
+                        f"the bake's frames {start}-{end} at {fps:g} fps are {want[0]}-{want[1]}")
+    if scene.render.fps != fps_int:
+        failures.append(f"--helper: scene fps {scene.render.fps} / {scene.render.fps_base:g}, "
+                        f"not {fps_int} / base")
     if info["actions"] and info["fcurves"] == 0:
         failures.append("--helper: the bake's actions hold no fcurves")
     if info["smooth_faces"] != info["faces"]:

@@ -98,10 +98,31 @@ fn scene_files_empty_or_misspelt_are_errors_with_a_suggestion() {
     assert_eq!(code, 1);
     assert!(
         err.starts_with("error: typo.toml: [[cloth]] job 1 (`lab`): unknown key `stifness` (did you mean `stiffness`? keys: ")
-            && err.contains(" bend_stiffness, ")
-            && err.contains(" collider, "),
+            && err.ends_with(")\n")
+            && err.lines().count() == 1,
         "{err}"
     );
+    // The keys are listed in order, the scene keys of `scenebake cloth`'s options among them
+    // (the list grows with new options, so no fixed slice of it is asserted).
+    let keys: Vec<&str> = err
+        .trim_end()
+        .trim_end_matches(')')
+        .split("keys: ")
+        .nth(1)
+        .unwrap()
+        .split(", ")
+        .collect();
+    assert!(keys.windows(2).all(|w| w[0] < w[1]), "{keys:?}");
+    for key in [
+        "bend_stiffness",
+        "collider",
+        "frames",
+        "output",
+        "stiffness",
+        "up",
+    ] {
+        assert!(keys.contains(&key), "{key} missing from {keys:?}");
+    }
     std::fs::write(
         dir.path().join("kind.toml"),
         "[[clth]]\npreset = \"lab-cloth\"\n",
@@ -788,4 +809,48 @@ fn a_large_output_is_announced_before_the_bake() {
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(130));
     assert!(!dir.path().join("big.glb").exists());
+}
+
+/// A loader's warning reaches the terminal (it was only in the JSON report): an OBJ with two
+/// positions no face uses says so after the summary, and the bake holds the four used ones only.
+#[test]
+fn unused_positions_are_reported_on_the_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("stray.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 0 1\nv 1 0 1\nv 5 5 5\nv 6 6 6\nf 1 2 3\nf 2 4 3\n",
+    )
+    .unwrap();
+    let (code, _, err) = run(
+        dir.path(),
+        &["cloth", "stray.obj", "--frames", "2", "-o", "stray.glb"],
+    );
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 2, "{err}");
+    assert!(
+        lines[0].starts_with("stray: baked 2 frames (4 particles,"),
+        "{err}"
+    );
+    assert_eq!(
+        lines[1],
+        "warning: stray: 2 positions are used by no face and were left out"
+    );
+    let (doc, _, _) = gltf::import(dir.path().join("stray.glb")).unwrap();
+    let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+    assert_eq!(prim.get(&gltf::Semantic::Positions).unwrap().count(), 4);
+}
+
+/// `#N` in --chain is documented with its shell quoting in `ik --help` (an unquoted `#13..#15`
+/// is a shell comment, and clap then only says a value is missing).
+#[test]
+fn chain_help_shows_how_to_quote_node_indices() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, out, _) = run(dir.path(), &["ik", "--help"]);
+    assert_eq!(code, 0);
+    let help: String = out.split_whitespace().collect::<Vec<_>>().join(" ");
+    assert!(
+        help.contains("#N for node N (quote it: a shell drops everything after an unquoted #, so write --chain '#13..#15'), or Node_N as Blender names unnamed nodes"),
+        "{out}"
+    );
 }

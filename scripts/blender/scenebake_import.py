@@ -117,8 +117,27 @@ def bake_actions(objects, name):
     return made
 
 
+def frame_range(playback, fps_import):
+    """The scene frames covering the bake's first and last frame, whose keys the importer put at
+    t × fps_import (the same frames when the bake's fps is an integer)."""
+    fps, first, last = playback[0], playback[1], playback[2]
+    return (int(math.floor(first / fps * fps_import + 1e-6)),
+            int(math.ceil(last / fps * fps_import - 1e-6)))
+
+
 def set_fps(scene, fps):
+    """The scene plays `fps` frames per second: Blender's integer fps over fps_base. Returns
+    the integer fps the importer should place keys with (import with fps_base 1, then call
+    set_fps_base): Blender 3.4's importer puts a key at t × fps, 5.x's at t × fps × fps_base, so
+    a non-integer rate (e.g. 29.65 for a walk's loop) imported under its fps_base would play
+    off by the base in 5.x."""
     scene.render.fps = max(1, int(round(fps)))
+    scene.render.fps_base = 1.0
+    return scene.render.fps
+
+
+def set_fps_base(scene, fps):
+    """After the import: fps_base so that the scene plays exactly `fps` frames per second."""
     scene.render.fps_base = scene.render.fps / fps
 
 
@@ -190,8 +209,8 @@ def import_bake(path, camera=True):
         track = name or "Animation_0"
         actions = bake_actions(objects, track)
     if playback:
-        start = int(math.floor(playback[1] / playback[0] * fps_import + 1e-6))
-        end = int(math.ceil(playback[2] / playback[0] * fps_import - 1e-6))
+        set_fps_base(scene, playback[0])
+        start, end = frame_range(playback, fps_import)
     else:
         ranges = [a.frame_range for a in actions] or [a.frame_range for a in bpy.data.actions]
         start = int(math.floor(min((r[0] for r in ranges), default=1)))
