@@ -82,7 +82,7 @@ def blender_loop_normals(ev, me):
 
 
 def check(path, objects, fps_import, frames=5, tolerance=2e-3, max_angle=3.0, min_smooth=0.99,
-          switch_actions=False):
+          switch_actions=False, skip=()):
     """Returns (lines, failures) for the file at `path`, imported into the current scene."""
     g = gltf_eval.Gltf(path)
     anims = g.doc.get("animations") or []
@@ -137,6 +137,9 @@ def check(path, objects, fps_import, frames=5, tolerance=2e-3, max_angle=3.0, mi
         animated = has_targets or "skin" in n or any(
             ch["target"].get("node") == node for a in anims[:1] for ch in a["channels"])
         if not animated and not morph:
+            continue
+        if n.get("name") in skip:
+            lines.append(f"nodes[{node}] ({n.get('name')}): skipped (--skip-node)")
             continue
         label = f"nodes[{node}] ({n.get('name') or mesh.get('name') or 'unnamed'})"
         obj = object_for_node(g, node, objects)
