@@ -164,7 +164,7 @@ pub struct Quantization {
     pub int16_targets: usize,
     /// Targets whose POSITION deltas are normalised int8.
     pub int8_targets: usize,
-    /// Component type of the base NORMAL: `float` or `int8` (normalised); `none` without normals.
+    /// Component type of the base NORMAL: `float` or `int16` (normalised); `none` without normals.
     pub normals: String,
     /// Targets whose NORMAL deltas are normalised int8 (the others are float).
     pub int8_normal_targets: usize,
@@ -480,7 +480,8 @@ pub fn encode_basis_gltf(
         // the tolerance (first with the int8 targets as chosen, then with the gained ones
         // int16), written instead when its file is smaller.
         let c = &pick.0;
-        let (_, nd) = fit_normals(frames, c, c.k);
+        let nb = stored_base_normals(&base_shape_normals(mesh, frames, c), true).0;
+        let nd = fit_normals(frames, c, &nb, c.k);
         let gains: Vec<f64> = (0..c.k)
             .map(|t| {
                 let m = nd[t]
@@ -943,51 +944,60 @@ fn select_keys(
     kept
 }
 
-/// Base normals and per-target normal deltas fitted to the baked normals given the weights.
-/// Only the first `j` targets get normal deltas; the others' are zero.
-fn fit_normals(frames: &RenderFrames, c: &Candidate, j: usize) -> (Vec<Vec3>, Vec<Vec<Vec3>>) {
-    let (f, v, k) = (frames.frame_count(), frames.vertex_count(), j.min(c.k));
+/// The base NORMAL: the stored base shape's own smooth normals, as Blender computes them
+/// (corner-angle weighted, from the positions a player reads), with the vertices that would make
+/// their faces import flat leaned by [`super::shading::LEAN_DEGREES`] towards where the baked
+/// normal turns. Unit vectors.
+///
+/// Blender's importer keeps the base NORMAL as custom split normals, stored relative to the
+/// imported (base) shape's own normals, and shades every shape-key frame with that offset carried
+/// along; a base NORMAL equal to the base shape's normals leaves no offset, so Blender shades each
+/// frame with the normals of the shape it plays (as the full cache, whose base is frame 0, does).
+fn base_shape_normals(mesh: &Mesh, frames: &RenderFrames, c: &Candidate) -> Vec<Vec3> {
+    let positions: Vec<DVec3> = c.base.iter().map(|p| p.as_dvec3()).collect();
+    let mut normals = Vec::new();
+    super::shading::angle_weighted_normals(&positions, &mesh.render_triangles, &mut normals);
+    let normals: Vec<Vec3> = normals.iter().map(|n| n.as_vec3()).collect();
+    let mut turns = vec![DVec3::ZERO; frames.vertex_count()];
+    for j in 0..frames.frame_count() {
+        for (t, n) in turns.iter_mut().zip(frames.normals(j)) {
+            *t += n.as_dvec3();
+        }
+    }
+    super::shading::lean_flat_normals(
+        &mesh.render_triangles,
+        &c.base,
+        &normals,
+        &turns,
+        frames.frame_count(),
+    )
+}
+
+/// Per-target normal deltas fitted by least squares to the baked normals given the weights and
+/// the fixed `base` normals (as stored). Only the first `j` targets get normal deltas; the
+/// others' are zero.
+fn fit_normals(frames: &RenderFrames, c: &Candidate, base: &[Vec3], j: usize) -> Vec<Vec<Vec3>> {
+    let (v, k) = (frames.vertex_count(), j.min(c.k));
     let w: Vec<Vec<f64>> = c
         .weights
         .iter()
         .map(|r| r[..k].iter().map(|x| *x as f64).collect())
         .collect();
-    // Regression on [1, w]: (K+1) × (K+1) normal matrix, shared by every vertex.
-    let n1 = k + 1;
-    let row = |j: usize, a: usize| if a == 0 { 1.0 } else { w[j][a - 1] };
-    let mut xtx = vec![0.0f64; n1 * n1];
-    for j in 0..f {
-        for a in 0..n1 {
-            for b in 0..n1 {
-                xtx[a * n1 + b] += row(j, a) * row(j, b);
-            }
-        }
-    }
-    let chol1 = cholesky(&xtx, n1);
     let mut wtw = vec![0.0f64; k * k];
-    for a in 0..k {
-        for b in 0..k {
-            wtw[a * k + b] = xtx[(a + 1) * n1 + b + 1];
+    for wj in &w {
+        for a in 0..k {
+            for b in 0..k {
+                wtw[a * k + b] += wj[a] * wj[b];
+            }
         }
     }
     let chol = cholesky(&wtw, k);
-    let mut base = vec![Vec3::ZERO; v];
     let mut deltas = vec![vec![Vec3::ZERO; v]; c.k];
     for i in 0..v {
-        let normal = |j: usize| frames.normals(j)[i].as_dvec3();
-        let mut rhs1 = vec![DVec3::ZERO; n1];
-        for j in 0..f {
-            for (a, r) in rhs1.iter_mut().enumerate() {
-                *r += row(j, a) * normal(j);
-            }
-        }
-        let beta0 = DVec3::from_array(std::array::from_fn(|axis| {
-            cholesky_solve(&chol1, n1, rhs1.iter().map(|r| r[axis]).collect())[0]
-        }));
-        let nb = beta0.try_normalize().unwrap_or(normal(0));
+        let nb = base[i].as_dvec3();
         let mut rhs = vec![DVec3::ZERO; k];
         for (j, wj) in w.iter().enumerate() {
-            let r = normal(j) - nb;
+            let r = frames.normals(j)[i].as_dvec3() - nb;
             for (x, wja) in rhs.iter_mut().zip(wj) {
                 *x += *wja * r;
             }
@@ -998,9 +1008,27 @@ fn fit_normals(frames: &RenderFrames, c: &Candidate, j: usize) -> (Vec<Vec3>, Ve
                 deltas[a][i][axis] = x as f32;
             }
         }
-        base[i] = nb.as_vec3();
     }
-    (base, deltas)
+    deltas
+}
+
+/// The base normals as stored: normalised int16 when `quantized` (fine enough to keep the lean
+/// of [`super::shading::LEAN_DEGREES`]; int8's step, about 0.45°, is not), with what a player
+/// reads back; else f32.
+fn stored_base_normals(normals: &[Vec3], quantized: bool) -> (Vec<Vec3>, Option<Vec<[i16; 3]>>) {
+    if !quantized {
+        return (normals.to_vec(), None);
+    }
+    // Shortened by more than the rounding can lengthen them (√3 · 0.5 / 32767), so a stored
+    // normal is never longer than 1: Blender's importer tests the stored (unnormalised) normal's
+    // dot product with the face normal, and a lean's dominant component rounded up to exactly 1
+    // would read as flat.
+    let shorten = 1.0 - 1.0 / I16;
+    let q: Vec<[i16; 3]> = normals
+        .iter()
+        .map(|n| quantize_i16(n.as_dvec3() * shorten))
+        .collect();
+    (q.iter().map(|x| dequantize_i16(*x)).collect(), Some(q))
 }
 
 fn quantize_i8(x: Vec3) -> [i8; 3] {
@@ -1069,16 +1097,16 @@ fn write(
         target_bytes: 0,
     };
 
-    // Normals: fitted; when quantised, the base as int8 and each target's deltas as int8 when
-    // every component fits in [-1, 1] (else f32, sparse where smaller).
+    // Normals: the base shape's own (see `base_shape_normals`), int16 when quantised; each
+    // target's deltas fitted to them, as int8 when every component fits in [-1, 1] (else f32,
+    // sparse where smaller).
     let normals = options.normals.then(|| {
-        let (nb, nd) = fit_normals(frames, &c, c.k);
-        if !c.quantized {
+        let (nb_s, nb_q) = stored_base_normals(&base_shape_normals(mesh, frames, &c), c.quantized);
+        let nd = fit_normals(frames, &c, &nb_s, c.k);
+        let Some(nb_q) = nb_q else {
             let n = nd.len();
-            return (nb, None, nd, vec![None; n]);
-        }
-        let nb_q: Vec<[i8; 3]> = nb.iter().map(|x| quantize_i8(*x)).collect();
-        let nb_s = nb_q.iter().map(|x| dequantize_i8(*x)).collect();
+            return (nb_s, None, nd, vec![None; n]);
+        };
         // Each target's deltas as int8 where every component fits in [-1, 1]; the others as
         // int8 clamped when that costs little (measured), else f32.
         let fits: Vec<bool> = nd
@@ -1135,7 +1163,7 @@ fn write(
     attributes.insert(Valid(json::mesh::Semantic::Positions), positions);
     if let Some((nb, q, _, _)) = &normals {
         let n = match q {
-            Some(nb_q) => i8_vec3(&mut b, nb_q, false),
+            Some(nb_q) => i16_vec3(&mut b, nb_q, array, false),
             None => b.vec3(nb, array, false),
         };
         attributes.insert(Valid(json::mesh::Semantic::Normals), n);
@@ -1245,7 +1273,7 @@ fn write(
         positions: if c.quantized { "int16" } else { "float" }.into(),
         normals: match (&normals, normals_i8) {
             (None, _) => "none",
-            (Some(_), true) => "int8",
+            (Some(_), true) => "int16",
             (Some(_), false) => "float",
         }
         .into(),
