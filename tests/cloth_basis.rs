@@ -207,8 +207,10 @@ fn auto_basis_plays_every_frame_within_the_tolerance_with_few_targets() {
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     let basis = report.cache.basis.as_ref().expect("basis stats");
     let played = load(&out);
-    assert_eq!(played.k(), basis.targets);
-    assert_eq!(report.cache.stats.targets, basis.targets);
+    // The K basis targets, and the NORMAL offset target when written.
+    let written = basis.targets + usize::from(basis.normal_offset_target);
+    assert_eq!(played.k(), written);
+    assert_eq!(report.cache.stats.targets, written);
     assert!(
         basis.targets >= 2 && basis.targets < frames / 4,
         "a slow cloth needs few basis shapes: K = {}",
@@ -283,7 +285,10 @@ fn quantized_basis_uses_int16_and_stays_within_the_tolerance() {
     assert!(e.quantized);
     assert_eq!(e.positions, "i16 normalized");
     let stored: usize = e.target_positions.iter().map(|(_, n)| n).sum();
-    assert_eq!(stored, basis.targets);
+    assert_eq!(
+        stored,
+        basis.targets + usize::from(basis.normal_offset_target)
+    );
     assert_eq!(
         basis.quantization.int8_targets + basis.quantization.int16_targets,
         basis.targets
@@ -356,7 +361,8 @@ fn fixed_basis_writes_k_targets_and_more_targets_are_closer() {
         job.quantize = Some(QuantizeMode::Off);
         let r = bake_cloth(&job, &mut |_, _| {}).unwrap();
         let played = load(&out);
-        assert_eq!(played.k(), k);
+        let offset = r.cache.basis.as_ref().unwrap().normal_offset_target;
+        assert_eq!(played.k(), k + usize::from(offset));
         let (e, _) = worst_error(&job, &played, r.fps);
         assert!((e - r.cache.basis.as_ref().unwrap().max_error as f32).abs() < 1e-5);
         errors.push(e);
