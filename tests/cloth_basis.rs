@@ -427,11 +427,30 @@ fn base_normals_are_the_base_shapes_own_and_every_face_imports_smooth() {
     let dir = tempfile::tempdir().unwrap();
     for quantize in [QuantizeMode::Auto, QuantizeMode::Off] {
         let out = dir.path().join(format!("lab_{quantize:?}.glb"));
-        let mut job = lab_job(&out, 60);
+        // 40×40 over 120 frames: large enough that the quantised file is smaller with the NORMAL
+        // offset target (the demo's lab_cloth_basis).
+        let mut job = ClothJob::new(ClothSource::LabCloth { resolution: 40 }, out.clone());
+        job.frames = Some(120);
         job.basis = Some(BasisSize::Auto);
         job.basis_tolerance = Some(1e-3);
         job.quantize = Some(quantize);
-        bake_cloth(&job, &mut |_, _| {}).unwrap();
+        let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+        let basis = report.cache.basis.as_ref().unwrap();
+        if quantize == QuantizeMode::Auto {
+            assert!(basis.normal_offset_target);
+        }
+        // The NORMAL offset target, when written, moves nothing and plays at weight 1.
+        let played = load(&out);
+        if basis.normal_offset_target {
+            assert_eq!(played.k(), basis.targets + 1);
+            assert!(played.deltas[basis.targets]
+                .iter()
+                .all(|d| *d == Vec3::ZERO));
+            let k = played.k();
+            assert!(played.weights.chunks(k).all(|w| w[k - 1] == 1.0));
+        }
+        let info = scenebake::inspect::inspect(&out).unwrap();
+        assert_eq!(info.failures().count(), 0);
         let bytes = std::fs::read(&out).unwrap();
         let gltf = gltf::Gltf::from_slice_without_validation(&bytes).unwrap();
         let buffers =

@@ -34,10 +34,11 @@
 //! positions, so a separate normal basis would need more targets. Instead each target's NORMAL
 //! delta `m_k` is fitted by least squares given the position weights: per vertex,
 //! `min Σ_f |n_b + o + Σ_k w_fk m_k - n_f|²`, where `o` is the NORMAL of one more target,
-//! `normal_offset` (zero POSITION, weight 1 in every frame): the offset from the base shape's
+//! `normal_offset` (zero POSITION: a sparse accessor listing one zero; weight 1 in every frame): the offset from the base shape's
 //! normals to the best constant term, which Blender ignores (it drops NORMAL deltas) and engines
-//! that morph normals add. That target is written when the file is smaller with it than with
-//! the deltas fitted to `n_b` alone (`o = 0`), and only when `--max-targets` leaves room for it.
+//! that morph normals add. That target is written when `--max-targets` leaves room for it,
+//! unless the file with the deltas fitted to `n_b` alone (`o = 0`) is smaller and its measured
+//! normal error is within 2° (largest) and 0.1° (mean) of the one with the offset.
 //! A normal that never changes gets zero deltas (kept sparse). Players renormalise after
 //! blending; the largest and mean angle between the played normal and the baked one are
 //! reported.
@@ -77,7 +78,7 @@ use std::path::Path;
 use faer::Mat;
 use glam::{DVec3, Vec3};
 use gltf_json as json;
-use json::validation::{Checked::Valid, USize64};
+use json::validation::Checked::Valid;
 
 use super::compact::{delta_accessor, DeltaEncoding};
 use super::frames::RenderFrames;
@@ -558,8 +559,7 @@ pub fn encode_basis_gltf(
         )
     };
     let size = |e: &EncodedBasis| e.morph.files.iter().map(|(_, b)| b.len()).sum::<usize>();
-    // With normals, the NORMAL offset target where the target cap leaves room for it, kept when
-    // its file is smaller than the one without.
+    // With normals, the NORMAL offset target where the target cap leaves room for it.
     let offset_allowed = options.normals && basis.max_targets.is_none_or(|m| k < m);
     let encode = |pick: Pick| -> Result<EncodedBasis> {
         let plain = encode(pick.clone(), false)?;
@@ -567,10 +567,15 @@ pub fn encode_basis_gltf(
             return Ok(plain);
         }
         let with = encode(pick, true)?;
-        Ok(if size(&with) < size(&plain) {
-            with
-        } else {
+        // The file without it only when smaller and its played normals (what engines show) are
+        // about as close to the bake: within the margins used for clamping normal deltas.
+        let (p, w) = (&plain.basis, &with.basis);
+        let close = p.max_normal_error_degrees <= w.max_normal_error_degrees + CLAMP_MAX_DEGREES
+            && p.mean_normal_error_degrees <= w.mean_normal_error_degrees + CLAMP_MEAN_DEGREES;
+        Ok(if size(&plain) <= size(&with) && close {
             plain
+        } else {
+            with
         })
     };
     let first = encode(pick)?;
@@ -1353,23 +1358,12 @@ fn write(
     let mut names: Vec<String> = (1..=c.k).map(|t| format!("basis_{t:02}")).collect();
     let offset_target = normals.as_ref().and_then(|n| n.4.as_ref());
     if let Some((o, o_q)) = offset_target {
-        // Zero POSITION deltas: an accessor without a buffer view (all zeros), bounds 0.
-        let zero = b.root.push(json::Accessor {
-            buffer_view: None,
-            byte_offset: None,
-            count: USize64::from(frames.vertex_count()),
-            component_type: Valid(json::accessor::GenericComponentType(
-                json::accessor::ComponentType::F32,
-            )),
-            extensions: None,
-            extras: Default::default(),
-            type_: Valid(json::accessor::Type::Vec3),
-            min: Some(serde_json::json!([0.0, 0.0, 0.0])),
-            max: Some(serde_json::json!([0.0, 0.0, 0.0])),
-            name: None,
-            normalized: false,
-            sparse: None,
-        });
+        // Zero POSITION deltas: a sparse accessor without a buffer view (all zeros) listing
+        // vertex 0's zero (the gltf crate wants a buffer view or sparse values), bounds 0.
+        let start = b.buffer_len();
+        let zero = b.sparse_vec3(&vec![Vec3::ZERO; frames.vertex_count()], &[0], true);
+        stats.sparse_accessors += 1;
+        bytes.target_positions += (b.buffer_len() - start) as u64;
         let start = b.buffer_len();
         let n = match o_q {
             Some(q) => {
