@@ -207,8 +207,10 @@ fn auto_basis_plays_every_frame_within_the_tolerance_with_few_targets() {
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     let basis = report.cache.basis.as_ref().expect("basis stats");
     let played = load(&out);
-    assert_eq!(played.k(), basis.targets);
-    assert_eq!(report.cache.stats.targets, basis.targets);
+    // The K basis targets, and the NORMAL offset target when written.
+    let written = basis.targets + usize::from(basis.normal_offset_target);
+    assert_eq!(played.k(), written);
+    assert_eq!(report.cache.stats.targets, written);
     assert!(
         basis.targets >= 2 && basis.targets < frames / 4,
         "a slow cloth needs few basis shapes: K = {}",
@@ -283,7 +285,10 @@ fn quantized_basis_uses_int16_and_stays_within_the_tolerance() {
     assert!(e.quantized);
     assert_eq!(e.positions, "i16 normalized");
     let stored: usize = e.target_positions.iter().map(|(_, n)| n).sum();
-    assert_eq!(stored, basis.targets);
+    assert_eq!(
+        stored,
+        basis.targets + usize::from(basis.normal_offset_target)
+    );
     assert_eq!(
         basis.quantization.int8_targets + basis.quantization.int16_targets,
         basis.targets
@@ -356,7 +361,8 @@ fn fixed_basis_writes_k_targets_and_more_targets_are_closer() {
         job.quantize = Some(QuantizeMode::Off);
         let r = bake_cloth(&job, &mut |_, _| {}).unwrap();
         let played = load(&out);
-        assert_eq!(played.k(), k);
+        let offset = r.cache.basis.as_ref().unwrap().normal_offset_target;
+        assert_eq!(played.k(), k + usize::from(offset));
         let (e, _) = worst_error(&job, &played, r.fps);
         assert!((e - r.cache.basis.as_ref().unwrap().max_error as f32).abs() < 1e-5);
         errors.push(e);
@@ -395,4 +401,101 @@ fn a_cache_that_never_moves_gets_one_zero_target() {
     let played = load(&out);
     let (worst, _) = worst_error(&job, &played, report.fps);
     assert!(worst <= 1e-3, "{worst}");
+}
+
+/// Corner-angle-weighted unit vertex normals of `triangles` over `positions` (Blender's smooth
+/// vertex normals), written here independently of the exporter.
+fn angle_weighted(positions: &[Vec3], triangles: &[[usize; 3]]) -> Vec<Vec3> {
+    let mut sum = vec![scenebake::glam::DVec3::ZERO; positions.len()];
+    for t in triangles {
+        let p = t.map(|i| positions[i].as_dvec3());
+        let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+        for c in 0..3 {
+            let a = (p[(c + 1) % 3] - p[c]).normalize();
+            let b = (p[(c + 2) % 3] - p[c]).normalize();
+            sum[t[c]] += n * a.dot(b).clamp(-1.0, 1.0).acos();
+        }
+    }
+    sum.iter().map(|n| n.normalize().as_vec3()).collect()
+}
+
+#[test]
+fn base_normals_are_the_base_shapes_own_and_every_face_imports_smooth() {
+    // Blender keeps the base NORMAL as custom normals relative to the imported base shape and
+    // guesses a face flat when every stored corner normal (not renormalised) has a dot product
+    // above 0.9999999 with the face normal. The lab cloth starts as a flat sheet.
+    let dir = tempfile::tempdir().unwrap();
+    for quantize in [QuantizeMode::Auto, QuantizeMode::Off] {
+        let out = dir.path().join(format!("lab_{quantize:?}.glb"));
+        // 40×40 over 120 frames: large enough that the quantised file is smaller with the NORMAL
+        // offset target (the demo's lab_cloth_basis).
+        let mut job = ClothJob::new(ClothSource::LabCloth { resolution: 40 }, out.clone());
+        job.frames = Some(120);
+        job.basis = Some(BasisSize::Auto);
+        job.basis_tolerance = Some(1e-3);
+        job.quantize = Some(quantize);
+        let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+        let basis = report.cache.basis.as_ref().unwrap();
+        if quantize == QuantizeMode::Auto {
+            assert!(basis.normal_offset_target);
+        }
+        // The NORMAL offset target, when written, moves nothing and plays at weight 1.
+        let played = load(&out);
+        if basis.normal_offset_target {
+            assert_eq!(played.k(), basis.targets + 1);
+            assert!(played.deltas[basis.targets]
+                .iter()
+                .all(|d| *d == Vec3::ZERO));
+            let k = played.k();
+            assert!(played.weights.chunks(k).all(|w| w[k - 1] == 1.0));
+        }
+        let info = scenebake::inspect::inspect(&out).unwrap();
+        assert_eq!(info.failures().count(), 0);
+        let bytes = std::fs::read(&out).unwrap();
+        let gltf = gltf::Gltf::from_slice_without_validation(&bytes).unwrap();
+        let buffers =
+            gltf::import_buffers(&gltf.document, out.parent(), gltf.blob.clone()).unwrap();
+        let prim = gltf
+            .document
+            .meshes()
+            .next()
+            .unwrap()
+            .primitives()
+            .next()
+            .unwrap();
+        let base = read_vec3(&prim.get(&gltf::Semantic::Positions).unwrap(), &buffers);
+        let normals = prim.get(&gltf::Semantic::Normals).unwrap();
+        if quantize == QuantizeMode::Auto {
+            assert_eq!(normals.data_type(), gltf::accessor::DataType::I16);
+        }
+        let stored = read_vec3(&normals, &buffers);
+        let indices: Vec<usize> = prim
+            .reader(|b| Some(&buffers[b.index()]))
+            .read_indices()
+            .unwrap()
+            .into_u32()
+            .map(|i| i as usize)
+            .collect();
+        let triangles: Vec<[usize; 3]> = indices.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let want = angle_weighted(&base, &triangles);
+        // Within the lean given to flat vertices (0.25°) and the int16 step.
+        let mut worst = 0.0f32;
+        for (n, w) in stored.iter().zip(&want) {
+            assert!(n.length() <= 1.0 + 1e-6, "{n} longer than 1");
+            worst = worst.max(n.normalize().dot(*w).min(1.0).acos().to_degrees());
+        }
+        assert!(
+            worst <= 0.26,
+            "{quantize:?}: {worst}° from the base shape's normals"
+        );
+        let flat = triangles
+            .iter()
+            .filter(|t| {
+                let p = t.map(|i| base[i]);
+                let face = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+                t.iter().all(|&i| stored[i].dot(face) > 0.999_999_9)
+            })
+            .count();
+        assert_eq!(flat, 0, "{quantize:?}: faces Blender would import flat");
+    }
 }

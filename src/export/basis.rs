@@ -24,12 +24,24 @@
 //! error is within the tolerance (the f64 projection error picks the first candidate; the
 //! measurement decides).
 //!
-//! **Normals.** glTF morphs normals with the same weights as positions, so a separate normal
-//! basis would need more targets. Instead each target's NORMAL delta is fitted by least squares
-//! given the position weights: per vertex, `min Σ_f |n_b + Σ_k w_fk m_k - n_f|²` over the base
-//! normal `n_b` and the deltas `m_k`; `n_b` is then normalised (glTF requires unit base normals)
-//! and the `m_k` refitted with it fixed. Players renormalise after blending; the largest and mean
-//! angle between the played normal and the baked one are reported.
+//! **Normals.** The base NORMAL `n_b` is the stored base shape's own smooth normal (corner-angle
+//! weighted, as Blender computes it), with the vertices that would make a face import flat leaned
+//! by [`super::shading::LEAN_DEGREES`]. Blender's importer keeps the base NORMAL as custom normals
+//! relative to the imported base shape and carries that offset into every shape-key frame; the
+//! base shape is far from any baked frame (it sits at the lowest coefficients), so any other base
+//! NORMAL (such as the best fit to the baked normals) shades every frame off by its offset, and
+//! normals equal to the face normals import flat. glTF morphs normals with the same weights as
+//! positions, so a separate normal basis would need more targets. Instead each target's NORMAL
+//! delta `m_k` is fitted by least squares given the position weights: per vertex,
+//! `min Σ_f |n_b + o + Σ_k w_fk m_k - n_f|²`, where `o` is the NORMAL of one more target,
+//! `normal_offset` (zero POSITION: a sparse accessor listing one zero; weight 1 in every frame): the offset from the base shape's
+//! normals to the best constant term, which Blender ignores (it drops NORMAL deltas) and engines
+//! that morph normals add. That target is written when `--max-targets` leaves room for it,
+//! unless the file with the deltas fitted to `n_b` alone (`o = 0`) is smaller and its measured
+//! normal error is within 2° (largest) and 0.1° (mean) of the one with the offset.
+//! A normal that never changes gets zero deltas (kept sparse). Players renormalise after
+//! blending; the largest and mean angle between the played normal and the baked one are
+//! reported.
 //!
 //! **Keyframes.** With `--keyframe-tolerance T`, the weight animation keeps only the frames
 //! needed so that every dropped frame, played back with interpolated weights, is within
@@ -44,7 +56,9 @@
 //! base), as `int16`, or as `int8` for the targets of smallest amplitude: their rounding bounds
 //! (amplitude · s · √3 / 254 each) are added up to a budget, the tolerance left over by the
 //! `int16` file, doubled while the measured error stays within the tolerance. The base normals
-//! are `int8`; each target's NORMAL deltas are `int8` when every component fits in [-1, 1];
+//! are `int16` (int8's step, about 0.45°, would round the lean away), shortened so that none is
+//! longer than 1 (Blender tests the stored normal unnormalised), and so is the normal offset
+//! when every component fits in [-1, 1]; each target's NORMAL deltas are `int8` when every component fits in [-1, 1];
 //! the others are `int8` clamped to [-1, 1] when that raises the measured normal error by at
 //! most 2° (largest) and 0.1° (mean) over the unclamped file (always with `--quantize on`),
 //! else `f32` (sparse where smaller). A target whose weights leave room gets a gain
@@ -164,7 +178,7 @@ pub struct Quantization {
     pub int16_targets: usize,
     /// Targets whose POSITION deltas are normalised int8.
     pub int8_targets: usize,
-    /// Component type of the base NORMAL: `float` or `int8` (normalised); `none` without normals.
+    /// Component type of the base NORMAL: `float` or `int16` (normalised); `none` without normals.
     pub normals: String,
     /// Targets whose NORMAL deltas are normalised int8 (the others are float).
     pub int8_normal_targets: usize,
@@ -215,6 +229,10 @@ pub struct BasisStats {
     pub mean_normal_error_degrees: f64,
     /// The first singular values of the frame deltas (up to K + 8), m.
     pub singular_values: Vec<f64>,
+    /// Whether one more target, `normal_offset` (zero POSITION, weight 1 in every frame), carries
+    /// the NORMAL offset from the base shape's own normals to the fitted ones (see
+    /// [`super::basis`]); then `targets + 1` targets are written.
+    pub normal_offset_target: bool,
     /// Storage of the attributes.
     pub quantization: Quantization,
     /// Bytes per part.
@@ -480,7 +498,8 @@ pub fn encode_basis_gltf(
         // the tolerance (first with the int8 targets as chosen, then with the gained ones
         // int16), written instead when its file is smaller.
         let c = &pick.0;
-        let (_, nd) = fit_normals(frames, c, c.k);
+        let nb = stored_base_normals(&base_shape_normals(mesh, frames, c), true).0;
+        let nd = fit_normals(frames, c, &nb, c.k);
         let gains: Vec<f64> = (0..c.k)
             .map(|t| {
                 let m = nd[t]
@@ -524,7 +543,7 @@ pub fn encode_basis_gltf(
         Some(e) => *e,
         None => projection_errors(frames, &svd, k, f64::NEG_INFINITY)[k - 1],
     };
-    let encode = |(candidate, keys, max_error, worst_frame): Pick| {
+    let encode = |(candidate, keys, max_error, worst_frame): Pick, offset: bool| {
         write(
             path,
             mesh,
@@ -536,14 +555,34 @@ pub fn encode_basis_gltf(
             (max_error, worst_frame),
             projection_error,
             svd.singular.iter().take(k + 8).copied().collect(),
+            offset,
         )
+    };
+    let size = |e: &EncodedBasis| e.morph.files.iter().map(|(_, b)| b.len()).sum::<usize>();
+    // With normals, the NORMAL offset target where the target cap leaves room for it.
+    let offset_allowed = options.normals && basis.max_targets.is_none_or(|m| k < m);
+    let encode = |pick: Pick| -> Result<EncodedBasis> {
+        let plain = encode(pick.clone(), false)?;
+        if !offset_allowed {
+            return Ok(plain);
+        }
+        let with = encode(pick, true)?;
+        // The file without it only when smaller and its played normals (what engines show) are
+        // about as close to the bake: within the margins used for clamping normal deltas.
+        let (p, w) = (&plain.basis, &with.basis);
+        let close = p.max_normal_error_degrees <= w.max_normal_error_degrees + CLAMP_MAX_DEGREES
+            && p.mean_normal_error_degrees <= w.mean_normal_error_degrees + CLAMP_MEAN_DEGREES;
+        Ok(if size(&plain) <= size(&with) && close {
+            plain
+        } else {
+            with
+        })
     };
     let first = encode(pick)?;
     // Keep the normal-gained encoding only when its file is smaller.
     match gained {
         Some(alt) => {
             let second = encode(alt)?;
-            let size = |e: &EncodedBasis| e.morph.files.iter().map(|(_, b)| b.len()).sum::<usize>();
             Ok(if size(&second) < size(&first) {
                 second
             } else {
@@ -943,10 +982,44 @@ fn select_keys(
     kept
 }
 
-/// Base normals and per-target normal deltas fitted to the baked normals given the weights.
-/// Only the first `j` targets get normal deltas; the others' are zero.
-fn fit_normals(frames: &RenderFrames, c: &Candidate, j: usize) -> (Vec<Vec3>, Vec<Vec<Vec3>>) {
-    let (f, v, k) = (frames.frame_count(), frames.vertex_count(), j.min(c.k));
+/// The base NORMAL: the stored base shape's own smooth normals, as Blender computes them
+/// (corner-angle weighted, from the positions a player reads), with the vertices that would make
+/// their faces import flat leaned by [`super::shading::LEAN_DEGREES`] towards where the baked
+/// normal turns. Unit vectors.
+///
+/// Blender's importer keeps the base NORMAL as custom split normals, stored relative to the
+/// imported (base) shape's own normals, and shades every shape-key frame with that offset carried
+/// along; a base NORMAL equal to the base shape's normals leaves no offset, so Blender shades each
+/// frame with the normals of the shape it plays (as the full cache, whose base is frame 0, does).
+fn base_shape_normals(mesh: &Mesh, frames: &RenderFrames, c: &Candidate) -> Vec<Vec3> {
+    let positions: Vec<DVec3> = c.base.iter().map(|p| p.as_dvec3()).collect();
+    let mut normals = Vec::new();
+    super::shading::angle_weighted_normals(&positions, &mesh.render_triangles, &mut normals);
+    let normals: Vec<Vec3> = normals.iter().map(|n| n.as_vec3()).collect();
+    let mut turns = vec![DVec3::ZERO; frames.vertex_count()];
+    for j in 0..frames.frame_count() {
+        for (t, n) in turns.iter_mut().zip(frames.normals(j)) {
+            *t += n.as_dvec3();
+        }
+    }
+    super::shading::lean_flat_normals(
+        &mesh.render_triangles,
+        &c.base,
+        &normals,
+        &turns,
+        frames.frame_count(),
+    )
+}
+
+/// Like [`fit_normals`], with one more unknown per vertex: a constant offset added to `base`
+/// (the NORMAL of a target whose weight is 1 in every frame). Returns the offsets and deltas.
+fn fit_normals_with_offset(
+    frames: &RenderFrames,
+    c: &Candidate,
+    base: &[Vec3],
+    j: usize,
+) -> (Vec<Vec3>, Vec<Vec<Vec3>>) {
+    let (v, k) = (frames.vertex_count(), j.min(c.k));
     let w: Vec<Vec<f64>> = c
         .weights
         .iter()
@@ -956,38 +1029,70 @@ fn fit_normals(frames: &RenderFrames, c: &Candidate, j: usize) -> (Vec<Vec3>, Ve
     let n1 = k + 1;
     let row = |j: usize, a: usize| if a == 0 { 1.0 } else { w[j][a - 1] };
     let mut xtx = vec![0.0f64; n1 * n1];
-    for j in 0..f {
+    for j in 0..w.len() {
         for a in 0..n1 {
             for b in 0..n1 {
                 xtx[a * n1 + b] += row(j, a) * row(j, b);
             }
         }
     }
-    let chol1 = cholesky(&xtx, n1);
+    let chol = cholesky(&xtx, n1);
+    let mut offsets = vec![Vec3::ZERO; v];
+    let mut deltas = vec![vec![Vec3::ZERO; v]; c.k];
+    for i in 0..v {
+        let nb = base[i].as_dvec3();
+        let n0 = frames.normals(0)[i];
+        if (1..w.len()).all(|j| frames.normals(j)[i] == n0) {
+            // A normal that never changes needs no deltas (exactly zero, so they stay sparse).
+            offsets[i] = (n0.as_dvec3() - nb).as_vec3();
+            continue;
+        }
+        let mut rhs = vec![DVec3::ZERO; n1];
+        for j in 0..w.len() {
+            let r = frames.normals(j)[i].as_dvec3() - nb;
+            for (a, x) in rhs.iter_mut().enumerate() {
+                *x += row(j, a) * r;
+            }
+        }
+        for axis in 0..3 {
+            let m = cholesky_solve(&chol, n1, rhs.iter().map(|r| r[axis]).collect());
+            for (a, x) in m.into_iter().enumerate() {
+                if a == 0 {
+                    offsets[i][axis] = x as f32;
+                } else {
+                    deltas[a - 1][i][axis] = x as f32;
+                }
+            }
+        }
+    }
+    (offsets, deltas)
+}
+
+/// Per-target normal deltas fitted by least squares to the baked normals given the weights and
+/// the fixed `base` normals (as stored). Only the first `j` targets get normal deltas; the
+/// others' are zero.
+fn fit_normals(frames: &RenderFrames, c: &Candidate, base: &[Vec3], j: usize) -> Vec<Vec<Vec3>> {
+    let (v, k) = (frames.vertex_count(), j.min(c.k));
+    let w: Vec<Vec<f64>> = c
+        .weights
+        .iter()
+        .map(|r| r[..k].iter().map(|x| *x as f64).collect())
+        .collect();
     let mut wtw = vec![0.0f64; k * k];
-    for a in 0..k {
-        for b in 0..k {
-            wtw[a * k + b] = xtx[(a + 1) * n1 + b + 1];
+    for wj in &w {
+        for a in 0..k {
+            for b in 0..k {
+                wtw[a * k + b] += wj[a] * wj[b];
+            }
         }
     }
     let chol = cholesky(&wtw, k);
-    let mut base = vec![Vec3::ZERO; v];
     let mut deltas = vec![vec![Vec3::ZERO; v]; c.k];
     for i in 0..v {
-        let normal = |j: usize| frames.normals(j)[i].as_dvec3();
-        let mut rhs1 = vec![DVec3::ZERO; n1];
-        for j in 0..f {
-            for (a, r) in rhs1.iter_mut().enumerate() {
-                *r += row(j, a) * normal(j);
-            }
-        }
-        let beta0 = DVec3::from_array(std::array::from_fn(|axis| {
-            cholesky_solve(&chol1, n1, rhs1.iter().map(|r| r[axis]).collect())[0]
-        }));
-        let nb = beta0.try_normalize().unwrap_or(normal(0));
+        let nb = base[i].as_dvec3();
         let mut rhs = vec![DVec3::ZERO; k];
         for (j, wj) in w.iter().enumerate() {
-            let r = normal(j) - nb;
+            let r = frames.normals(j)[i].as_dvec3() - nb;
             for (x, wja) in rhs.iter_mut().zip(wj) {
                 *x += *wja * r;
             }
@@ -998,9 +1103,27 @@ fn fit_normals(frames: &RenderFrames, c: &Candidate, j: usize) -> (Vec<Vec3>, Ve
                 deltas[a][i][axis] = x as f32;
             }
         }
-        base[i] = nb.as_vec3();
     }
-    (base, deltas)
+    deltas
+}
+
+/// The base normals as stored: normalised int16 when `quantized` (fine enough to keep the lean
+/// of [`super::shading::LEAN_DEGREES`]; int8's step, about 0.45°, is not), with what a player
+/// reads back; else f32.
+fn stored_base_normals(normals: &[Vec3], quantized: bool) -> (Vec<Vec3>, Option<Vec<[i16; 3]>>) {
+    if !quantized {
+        return (normals.to_vec(), None);
+    }
+    // Shortened by more than the rounding can lengthen them (√3 · 0.5 / 32767), so a stored
+    // normal is never longer than 1: Blender's importer tests the stored (unnormalised) normal's
+    // dot product with the face normal, and a lean's dominant component rounded up to exactly 1
+    // would read as flat.
+    let shorten = 1.0 - 1.0 / I16;
+    let q: Vec<[i16; 3]> = normals
+        .iter()
+        .map(|n| quantize_i16(n.as_dvec3() * shorten))
+        .collect();
+    (q.iter().map(|x| dequantize_i16(*x)).collect(), Some(q))
 }
 
 fn quantize_i8(x: Vec3) -> [i8; 3] {
@@ -1055,7 +1178,9 @@ fn write(
     (max_error, worst_frame): (f64, usize),
     projection_error: f64,
     singular_values: Vec<f64>,
+    offset: bool,
 ) -> Result<EncodedBasis> {
+    let offset = offset && options.normals;
     let mut b = GltfBuilder::new();
     let mut bytes = PartBytes::default();
     let array = Some(json::buffer::Target::ArrayBuffer);
@@ -1069,16 +1194,39 @@ fn write(
         target_bytes: 0,
     };
 
-    // Normals: fitted; when quantised, the base as int8 and each target's deltas as int8 when
-    // every component fits in [-1, 1] (else f32, sparse where smaller).
+    // Normals: the base shape's own (see `base_shape_normals`), int16 when quantised; each
+    // target's deltas fitted to them, as int8 when every component fits in [-1, 1] (else f32,
+    // sparse where smaller).
     let normals = options.normals.then(|| {
-        let (nb, nd) = fit_normals(frames, &c, c.k);
-        if !c.quantized {
+        let (nb_s, nb_q) = stored_base_normals(&base_shape_normals(mesh, frames, &c), c.quantized);
+        let (off, nd) = if offset {
+            let (o, d) = fit_normals_with_offset(frames, &c, &nb_s, c.k);
+            (Some(o), d)
+        } else {
+            (None, fit_normals(frames, &c, &nb_s, c.k))
+        };
+        // The offset target's values: int16 when quantised and every component fits (int8's
+        // step would show in every frame's normal).
+        let off = off.map(|o| {
+            if c.quantized && o.iter().all(|x| x.abs().max_element() <= 1.0) {
+                let q: Vec<[i16; 3]> = o.iter().map(|x| quantize_i16(x.as_dvec3())).collect();
+                (
+                    q.iter().map(|x| dequantize_i16(*x)).collect::<Vec<_>>(),
+                    Some(q),
+                )
+            } else {
+                (o, None)
+            }
+        });
+        // What a player adds up before the deltas: the base, plus the offset at weight 1.
+        let played_base: Vec<Vec3> = match &off {
+            Some((o, _)) => nb_s.iter().zip(o).map(|(b, o)| *b + *o).collect(),
+            None => nb_s.clone(),
+        };
+        let Some(nb_q) = nb_q else {
             let n = nd.len();
-            return (nb, None, nd, vec![None; n]);
-        }
-        let nb_q: Vec<[i8; 3]> = nb.iter().map(|x| quantize_i8(*x)).collect();
-        let nb_s = nb_q.iter().map(|x| dequantize_i8(*x)).collect();
+            return (nb_s, None, nd, vec![None; n], off, played_base);
+        };
         // Each target's deltas as int8 where every component fits in [-1, 1]; the others as
         // int8 clamped when that costs little (measured), else f32.
         let fits: Vec<bool> = nd
@@ -1101,18 +1249,32 @@ fn write(
         };
         let (nd_s, nd_q) = encode(false);
         if fits.iter().all(|f| *f) {
-            return (nb_s, Some(nb_q), nd_s, nd_q);
+            return (nb_s, Some(nb_q), nd_s, nd_q, off, played_base);
         }
-        let exact = normal_errors(frames, &c, &keys, options.interpolation, &nb_s, &nd_s);
+        let exact = normal_errors(
+            frames,
+            &c,
+            &keys,
+            options.interpolation,
+            &played_base,
+            &nd_s,
+        );
         let (cd_s, cd_q) = encode(true);
-        let clamped = normal_errors(frames, &c, &keys, options.interpolation, &nb_s, &cd_s);
+        let clamped = normal_errors(
+            frames,
+            &c,
+            &keys,
+            options.interpolation,
+            &played_base,
+            &cd_s,
+        );
         if basis.quantize == QuantizeMode::On
             || (clamped.0 <= exact.0 + CLAMP_MAX_DEGREES
                 && clamped.1 <= exact.1 + CLAMP_MEAN_DEGREES)
         {
-            (nb_s, Some(nb_q), cd_s, cd_q)
+            (nb_s, Some(nb_q), cd_s, cd_q, off, played_base)
         } else {
-            (nb_s, Some(nb_q), nd_s, nd_q)
+            (nb_s, Some(nb_q), nd_s, nd_q, off, played_base)
         }
     });
     let normals_i8 = normals.as_ref().is_some_and(|n| n.1.is_some());
@@ -1120,7 +1282,9 @@ fn write(
         .as_ref()
         .map_or(0, |n| n.3.iter().filter(|q| q.is_some()).count());
     let (max_normal, mean_normal) = match &normals {
-        Some((nb, _, nd, _)) => normal_errors(frames, &c, &keys, options.interpolation, nb, nd),
+        Some((_, _, nd, _, _, pb)) => {
+            normal_errors(frames, &c, &keys, options.interpolation, pb, nd)
+        }
         None => (0.0, 0.0),
     };
 
@@ -1133,9 +1297,9 @@ fn write(
         b.vec3(&c.base, array, true)
     };
     attributes.insert(Valid(json::mesh::Semantic::Positions), positions);
-    if let Some((nb, q, _, _)) = &normals {
+    if let Some((nb, q, _, _, _, _)) = &normals {
         let n = match q {
-            Some(nb_q) => i8_vec3(&mut b, nb_q, false),
+            Some(nb_q) => i16_vec3(&mut b, nb_q, array, false),
             None => b.vec3(nb, array, false),
         };
         attributes.insert(Valid(json::mesh::Semantic::Normals), n);
@@ -1171,17 +1335,19 @@ fn write(
         };
         bytes.target_positions += (b.buffer_len() - start) as u64;
         let start = b.buffer_len();
-        let normals = normals.as_ref().map(|(_, _, nd, nd_q)| match &nd_q[t] {
-            Some(q) => {
-                stats.dense_accessors += 1;
-                i8_vec3(&mut b, q, false)
-            }
-            None => {
-                let (a, e) = delta_accessor(&mut b, &nd[t], options.sparse, false);
-                count(&mut stats, e);
-                a
-            }
-        });
+        let normals = normals
+            .as_ref()
+            .map(|(_, _, nd, nd_q, _, _)| match &nd_q[t] {
+                Some(q) => {
+                    stats.dense_accessors += 1;
+                    i8_vec3(&mut b, q, false)
+                }
+                None => {
+                    let (a, e) = delta_accessor(&mut b, &nd[t], options.sparse, false);
+                    count(&mut stats, e);
+                    a
+                }
+            });
         bytes.target_normals += (b.buffer_len() - start) as u64;
         targets.push(json::mesh::MorphTarget {
             positions: Some(positions),
@@ -1189,8 +1355,38 @@ fn write(
             tangents: None,
         });
     }
+    let mut names: Vec<String> = (1..=c.k).map(|t| format!("basis_{t:02}")).collect();
+    let offset_target = normals.as_ref().and_then(|n| n.4.as_ref());
+    if let Some((o, o_q)) = offset_target {
+        // Zero POSITION deltas: a sparse accessor without a buffer view (all zeros) listing
+        // vertex 0's zero (the gltf crate wants a buffer view or sparse values), bounds 0.
+        let start = b.buffer_len();
+        let zero = b.sparse_vec3(&vec![Vec3::ZERO; frames.vertex_count()], &[0], true);
+        stats.sparse_accessors += 1;
+        bytes.target_positions += (b.buffer_len() - start) as u64;
+        let start = b.buffer_len();
+        let n = match o_q {
+            Some(q) => {
+                stats.dense_accessors += 1;
+                i16_vec3(&mut b, q, array, false)
+            }
+            None => {
+                let (a, e) = delta_accessor(&mut b, o, options.sparse, false);
+                count(&mut stats, e);
+                a
+            }
+        };
+        bytes.target_normals += (b.buffer_len() - start) as u64;
+        targets.push(json::mesh::MorphTarget {
+            positions: Some(zero),
+            normals: Some(n),
+            tangents: None,
+        });
+        names.push("normal_offset".into());
+        stats.targets += 1;
+    }
+    let offset_weight = offset_target.map(|_| 1.0f32);
     stats.target_bytes = bytes.target_positions + bytes.target_normals;
-    let names: Vec<String> = (1..=c.k).map(|t| format!("basis_{t:02}")).collect();
     let material = cloth_material(&mut b);
     let to_raw = |value: serde_json::Value| {
         serde_json::value::to_raw_value(&value).map_err(|error| Error::Json {
@@ -1209,7 +1405,7 @@ fn write(
                 json::mesh::Mode::Triangles,
             )
         }],
-        weights: Some(c.weights[0].clone()),
+        weights: Some(c.weights[0].iter().copied().chain(offset_weight).collect()),
         extensions: None,
         extras: Some(to_raw(serde_json::json!({ "targetNames": names }))?),
     });
@@ -1224,7 +1420,10 @@ fn write(
 
     // Weights: one key per kept frame at its true time.
     let start = b.buffer_len();
-    let weights: Vec<f32> = keys.iter().flat_map(|&k| c.weights[k].clone()).collect();
+    let weights: Vec<f32> = keys
+        .iter()
+        .flat_map(|&k| c.weights[k].iter().copied().chain(offset_weight))
+        .collect();
     push_weights_animation(&mut b, node, &keys, &weights, options);
     bytes.animation = (b.buffer_len() - start) as u64;
     super::playback::stamp(
@@ -1245,7 +1444,7 @@ fn write(
         positions: if c.quantized { "int16" } else { "float" }.into(),
         normals: match (&normals, normals_i8) {
             (None, _) => "none",
-            (Some(_), true) => "int8",
+            (Some(_), true) => "int16",
             (Some(_), false) => "float",
         }
         .into(),
@@ -1274,6 +1473,7 @@ fn write(
             projection_error,
             max_normal_error_degrees: max_normal,
             mean_normal_error_degrees: mean_normal,
+            normal_offset_target: offset_weight.is_some(),
             singular_values,
             quantization,
             bytes,

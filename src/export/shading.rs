@@ -30,50 +30,101 @@ const FLAT_DEGREES: f64 = 0.1;
 /// frame-0 normals, with the vertices that would make their faces import flat (see the module
 /// docs) leaned by [`LEAN_DEGREES`]. Unit vectors, one per render vertex.
 pub fn base_normals(mesh: &Mesh, frames: &RenderFrames) -> Vec<Vec3> {
-    let n0 = frames.normals(0);
-    let p0 = frames.positions(0);
-    let count = frames.vertex_count();
-    // Largest angle (as the smallest cosine) between each vertex normal and its faces' normals,
-    // faces computed from the f32 positions an importer reads.
-    let mut min_cos = vec![1.0f64; count];
-    let mut touched = vec![false; count];
-    for t in &mesh.render_triangles {
-        let [a, b, c] = t.map(|i| p0[i as usize].as_dvec3());
-        let Some(face) = (b - a).cross(c - a).try_normalize() else {
-            continue;
-        };
-        for &i in t {
-            let i = i as usize;
-            touched[i] = true;
-            min_cos[i] = min_cos[i].min(face.dot(n0[i].as_dvec3()));
-        }
-    }
-    let flat_cos = FLAT_DEGREES.to_radians().cos();
-    let lean = LEAN_DEGREES.to_radians().tan();
     // The sum of each vertex's normals over the bake (frame by frame, in memory order).
+    let count = frames.vertex_count();
     let mut turns = vec![DVec3::ZERO; count];
     for k in 1..frames.frame_count() {
         for (t, n) in turns.iter_mut().zip(frames.normals(k)) {
             *t += n.as_dvec3();
         }
     }
-    (0..count)
-        .map(|v| {
-            let n = n0[v].as_dvec3();
-            if !touched[v] || min_cos[v] < flat_cos {
-                return n0[v];
-            }
-            // The direction the normal turns to over the bake, in the tangent plane.
-            let turn = turns[v];
-            let mut tangent = turn - n * turn.dot(n);
-            if tangent.length() < 1e-9 * (frames.frame_count() as f64) {
-                // Never turns: any direction will do (the face shades the same either way).
-                tangent = n.any_orthonormal_vector();
-            }
-            (n + tangent.normalize() * lean).normalize().as_vec3()
-        })
-        .collect()
+    lean_flat_normals(
+        &mesh.render_triangles,
+        frames.positions(0),
+        frames.normals(0),
+        &turns,
+        frames.frame_count(),
+    )
 }
+
+/// `normals` (unit, one per vertex of `positions`) with the vertices that would make their faces
+/// import flat in Blender leaned by [`LEAN_DEGREES`]: every vertex within [`FLAT_DEGREES`] of all
+/// its faces' normals, then any vertex of a face that Blender's test (every corner's dot product
+/// with the face normal above [`BLENDER_FLAT_DOT`]) would still find flat, with a tenfold margin
+/// for rounding. Each lean goes towards the
+/// tangent part of the vertex's `turns` (a sum of `samples` unit normals over the bake: where
+/// the normal turns to), or any tangent direction when that is about zero. Face normals come
+/// from the f32 `positions` an importer reads (any uniform scale and translation).
+pub fn lean_flat_normals(
+    triangles: &[[u32; 3]],
+    positions: &[Vec3],
+    normals: &[Vec3],
+    turns: &[DVec3],
+    samples: usize,
+) -> Vec<Vec3> {
+    let count = normals.len();
+    let face = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| positions[i as usize].as_dvec3());
+        (b - a).cross(c - a).try_normalize()
+    };
+    // Largest angle (as the smallest cosine) between each vertex normal and its faces' normals.
+    let mut min_cos = vec![1.0f64; count];
+    let mut touched = vec![false; count];
+    for t in triangles {
+        let Some(face) = face(t) else {
+            continue;
+        };
+        for &i in t {
+            let i = i as usize;
+            touched[i] = true;
+            min_cos[i] = min_cos[i].min(face.dot(normals[i].as_dvec3()));
+        }
+    }
+    let flat_cos = FLAT_DEGREES.to_radians().cos();
+    let lean = LEAN_DEGREES.to_radians().tan();
+    let leaned = |v: usize| {
+        let n = normals[v].as_dvec3();
+        // The direction the normal turns to over the bake, in the tangent plane.
+        let turn = turns.get(v).copied().unwrap_or(DVec3::ZERO);
+        let mut tangent = turn - n * turn.dot(n);
+        if tangent.length() < 1e-9 * (samples.max(1) as f64) {
+            // Never turns: any direction will do (the face shades the same either way).
+            tangent = n.any_orthonormal_vector();
+        }
+        (n + tangent.normalize() * lean).normalize().as_vec3()
+    };
+    let mut out: Vec<Vec3> = (0..count)
+        .map(|v| {
+            if !touched[v] || min_cos[v] < flat_cos {
+                normals[v]
+            } else {
+                leaned(v)
+            }
+        })
+        .collect();
+    let mut done: Vec<bool> = (0..count).map(|v| out[v] != normals[v]).collect();
+    for t in triangles {
+        let Some(face) = face(t) else {
+            continue;
+        };
+        if t.iter()
+            .all(|&i| out[i as usize].as_dvec3().dot(face) > 1.0 - 10.0 * (1.0 - BLENDER_FLAT_DOT))
+        {
+            for &i in t {
+                let i = i as usize;
+                if !done[i] {
+                    out[i] = leaned(i);
+                    done[i] = true;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Blender's importer (io_scene_gltf2 `set_poly_smoothing`) imports a face flat when every
+/// corner normal's dot product with the face normal is above this.
+pub const BLENDER_FLAT_DOT: f64 = 0.999_999_9;
 
 /// Corner-angle-weighted unit vertex normals of a triangle soup over `positions` (+Y where a
 /// vertex touches no triangle of non-zero area): each triangle's unit normal counts with the
