@@ -1011,6 +1011,13 @@ fn base_shape_normals(mesh: &Mesh, frames: &RenderFrames, c: &Candidate) -> Vec<
     )
 }
 
+/// Per-target normal deltas fitted by least squares to the baked normals given the weights and
+/// the fixed `base` normals (as stored). Only the first `j` targets get normal deltas; the
+/// others' are zero.
+fn fit_normals(frames: &RenderFrames, c: &Candidate, base: &[Vec3], j: usize) -> Vec<Vec<Vec3>> {
+    fit_normal_deltas(frames, c, base, j, false).1
+}
+
 /// Like [`fit_normals`], with one more unknown per vertex: a constant offset added to `base`
 /// (the NORMAL of a target whose weight is 1 in every frame). Returns the offsets and deltas.
 fn fit_normals_with_offset(
@@ -1019,15 +1026,30 @@ fn fit_normals_with_offset(
     base: &[Vec3],
     j: usize,
 ) -> (Vec<Vec3>, Vec<Vec<Vec3>>) {
+    fit_normal_deltas(frames, c, base, j, true)
+}
+
+/// The least squares of [`fit_normals`] (regressors: the first `j` weights) and, with
+/// `intercept`, of [`fit_normals_with_offset`] (regressors [1, weights]: the offsets come
+/// first; a normal that never changes then gets its offset alone and exactly zero deltas, so
+/// they stay sparse). The normal matrix is shared by every vertex. Returns the offsets (zero
+/// without `intercept`) and the deltas.
+fn fit_normal_deltas(
+    frames: &RenderFrames,
+    c: &Candidate,
+    base: &[Vec3],
+    j: usize,
+    intercept: bool,
+) -> (Vec<Vec3>, Vec<Vec<Vec3>>) {
     let (v, k) = (frames.vertex_count(), j.min(c.k));
     let w: Vec<Vec<f64>> = c
         .weights
         .iter()
         .map(|r| r[..k].iter().map(|x| *x as f64).collect())
         .collect();
-    // Regression on [1, w]: (K+1) × (K+1) normal matrix, shared by every vertex.
-    let n1 = k + 1;
-    let row = |j: usize, a: usize| if a == 0 { 1.0 } else { w[j][a - 1] };
+    let first = usize::from(intercept);
+    let n1 = k + first;
+    let row = |j: usize, a: usize| if a < first { 1.0 } else { w[j][a - first] };
     let mut xtx = vec![0.0f64; n1 * n1];
     for j in 0..w.len() {
         for a in 0..n1 {
@@ -1042,8 +1064,7 @@ fn fit_normals_with_offset(
     for i in 0..v {
         let nb = base[i].as_dvec3();
         let n0 = frames.normals(0)[i];
-        if (1..w.len()).all(|j| frames.normals(j)[i] == n0) {
-            // A normal that never changes needs no deltas (exactly zero, so they stay sparse).
+        if intercept && (1..w.len()).all(|j| frames.normals(j)[i] == n0) {
             offsets[i] = (n0.as_dvec3() - nb).as_vec3();
             continue;
         }
@@ -1057,54 +1078,15 @@ fn fit_normals_with_offset(
         for axis in 0..3 {
             let m = cholesky_solve(&chol, n1, rhs.iter().map(|r| r[axis]).collect());
             for (a, x) in m.into_iter().enumerate() {
-                if a == 0 {
+                if a < first {
                     offsets[i][axis] = x as f32;
                 } else {
-                    deltas[a - 1][i][axis] = x as f32;
+                    deltas[a - first][i][axis] = x as f32;
                 }
             }
         }
     }
     (offsets, deltas)
-}
-
-/// Per-target normal deltas fitted by least squares to the baked normals given the weights and
-/// the fixed `base` normals (as stored). Only the first `j` targets get normal deltas; the
-/// others' are zero.
-fn fit_normals(frames: &RenderFrames, c: &Candidate, base: &[Vec3], j: usize) -> Vec<Vec<Vec3>> {
-    let (v, k) = (frames.vertex_count(), j.min(c.k));
-    let w: Vec<Vec<f64>> = c
-        .weights
-        .iter()
-        .map(|r| r[..k].iter().map(|x| *x as f64).collect())
-        .collect();
-    let mut wtw = vec![0.0f64; k * k];
-    for wj in &w {
-        for a in 0..k {
-            for b in 0..k {
-                wtw[a * k + b] += wj[a] * wj[b];
-            }
-        }
-    }
-    let chol = cholesky(&wtw, k);
-    let mut deltas = vec![vec![Vec3::ZERO; v]; c.k];
-    for i in 0..v {
-        let nb = base[i].as_dvec3();
-        let mut rhs = vec![DVec3::ZERO; k];
-        for (j, wj) in w.iter().enumerate() {
-            let r = frames.normals(j)[i].as_dvec3() - nb;
-            for (x, wja) in rhs.iter_mut().zip(wj) {
-                *x += *wja * r;
-            }
-        }
-        for axis in 0..3 {
-            let m = cholesky_solve(&chol, k, rhs.iter().map(|r| r[axis]).collect());
-            for (a, x) in m.into_iter().enumerate() {
-                deltas[a][i][axis] = x as f32;
-            }
-        }
-    }
-    deltas
 }
 
 /// The base normals as stored: normalised int16 when `quantized` (fine enough to keep the lean

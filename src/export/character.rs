@@ -14,7 +14,7 @@ use std::path::Path;
 use gltf_json as json;
 
 use super::gltf_doc::{channel, sampler, GltfBuilder};
-use super::morph::{push_morph, CacheStats, EncodedMorph, MorphOptions};
+use super::morph::{push_morph, stamp_and_encode, CacheStats, EncodedMorph, MorphOptions};
 use super::skin::{lift_skinned_meshes_to_root, posed_nodes, push_hold_channels};
 use super::RenderFrames;
 use crate::data::animation::{Clip, Interpolation, Property};
@@ -115,14 +115,7 @@ pub fn encode_character_gltf(
         });
     }
     b.root.scenes[scene].nodes.push(node);
-    super::playback::stamp(
-        &mut b.root,
-        &super::playback::Playback::frames(options.fps, frames.frame_count(), &options.name),
-    );
-    Ok(EncodedMorph {
-        files: b.encode(path)?,
-        stats,
-    })
+    stamp_and_encode(b, path, frames, options, stats)
 }
 
 /// The clip's tracks as a new animation covering `cycles` loops: each loop's keys shifted by

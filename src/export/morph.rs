@@ -192,6 +192,18 @@ pub fn encode_morph_gltf(
     let mut b = GltfBuilder::new();
     let (node, stats) = push_morph(&mut b, path, mesh, frames, options)?;
     push_scene(&mut b, node, &options.static_meshes);
+    stamp_and_encode(b, path, frames, options, stats)
+}
+
+/// Records the bake's fps and frame range in `b` (see [`super::playback`]) and encodes it for
+/// `path`.
+pub(crate) fn stamp_and_encode(
+    mut b: GltfBuilder,
+    path: &Path,
+    frames: &RenderFrames,
+    options: &MorphOptions,
+    stats: CacheStats,
+) -> Result<EncodedMorph> {
     super::playback::stamp(
         &mut b.root,
         &super::playback::Playback::frames(options.fps, frames.frame_count(), &options.name),

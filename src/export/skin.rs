@@ -652,7 +652,10 @@ pub(crate) fn push_hold_channels(
     if nodes.is_empty() {
         return;
     }
-    let input = b.scalars(times, true);
+    let key = LinearKeys {
+        input: b.scalars(times, true),
+        count: times.len(),
+    };
     for &node in nodes {
         let (t, r, s) = node_trs_f32(&mut b.root.nodes[node]);
         let index = json::Index::new(node as u32);
@@ -677,22 +680,47 @@ pub(crate) fn push_hold_channels(
             if skip(node, property) {
                 continue;
             }
-            let output = b.accessor(
-                &bytes,
-                times.len(),
-                type_,
-                json::accessor::ComponentType::F32,
-                None,
-                None,
-                false,
-            );
-            channels.push(channel(samplers.len(), index, property));
-            samplers.push(sampler(
-                input,
-                output,
-                json::animation::Interpolation::Linear,
-            ));
+            key.push(b, index, property, &bytes, type_, channels, samplers);
         }
+    }
+}
+
+/// The shared time accessor (`count` keys) of LINEAR channels written one after another.
+#[derive(Clone, Copy)]
+struct LinearKeys {
+    input: json::Index<json::Accessor>,
+    count: usize,
+}
+
+impl LinearKeys {
+    /// Adds a LINEAR channel for `property` of `node`, its values `bytes` (f32, `type_`, one per
+    /// key).
+    #[allow(clippy::too_many_arguments)]
+    fn push(
+        self,
+        b: &mut GltfBuilder,
+        node: json::Index<json::Node>,
+        property: json::animation::Property,
+        bytes: &[u8],
+        type_: json::accessor::Type,
+        channels: &mut Vec<json::animation::Channel>,
+        samplers: &mut Vec<json::animation::Sampler>,
+    ) {
+        let output = b.accessor(
+            bytes,
+            self.count,
+            type_,
+            json::accessor::ComponentType::F32,
+            None,
+            None,
+            false,
+        );
+        channels.push(channel(samplers.len(), node, property));
+        samplers.push(sampler(
+            self.input,
+            output,
+            json::animation::Interpolation::Linear,
+        ));
     }
 }
 
@@ -729,41 +757,37 @@ fn layer_channels(
             rotations.push(a);
         }
         let index = json::Index::new(node as u32);
-        let mut push = |b: &mut GltfBuilder, property, bytes: Vec<u8>, type_| {
-            let output = b.accessor(
-                &bytes,
-                times.len(),
-                type_,
-                json::accessor::ComponentType::F32,
-                None,
-                None,
-                false,
-            );
-            channels.push(channel(samplers.len(), index, property));
-            samplers.push(sampler(
-                input,
-                output,
-                json::animation::Interpolation::Linear,
-            ));
+        let key = LinearKeys {
+            input,
+            count: times.len(),
         };
-        push(
-            b,
-            json::animation::Property::Translation,
-            super::gltf_doc::f32_bytes(translations.into_iter()),
-            json::accessor::Type::Vec3,
-        );
-        push(
-            b,
-            json::animation::Property::Rotation,
-            super::gltf_doc::f32_bytes(rotations.into_iter().flatten()),
-            json::accessor::Type::Vec4,
-        );
-        push(
-            b,
-            json::animation::Property::Scale,
-            super::gltf_doc::f32_bytes(scales.into_iter()),
-            json::accessor::Type::Vec3,
-        );
+        for (property, bytes, type_) in [
+            (
+                json::animation::Property::Translation,
+                super::gltf_doc::f32_bytes(translations.into_iter()),
+                json::accessor::Type::Vec3,
+            ),
+            (
+                json::animation::Property::Rotation,
+                super::gltf_doc::f32_bytes(rotations.into_iter().flatten()),
+                json::accessor::Type::Vec4,
+            ),
+            (
+                json::animation::Property::Scale,
+                super::gltf_doc::f32_bytes(scales.into_iter()),
+                json::accessor::Type::Vec3,
+            ),
+        ] {
+            key.push(
+                b,
+                index,
+                property,
+                &bytes,
+                type_,
+                &mut channels,
+                &mut samplers,
+            );
+        }
     }
     (channels, samplers)
 }
