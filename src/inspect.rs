@@ -71,9 +71,10 @@ pub struct Encoding {
     pub positions: String,
     /// Component type of NORMAL, if any.
     pub normals: Option<String>,
-    /// Target POSITION component types and how many targets use each.
+    /// Target POSITION component types (`zero` for a one-entry sparse accessor of zeros) and
+    /// how many targets use each.
     pub target_positions: Vec<(String, usize)>,
-    /// Target NORMAL component types and how many targets use each.
+    /// Target NORMAL component types (`zero` as for POSITION) and how many targets use each.
     pub target_normals: Vec<(String, usize)>,
     /// Target accessors stored sparse.
     pub sparse_accessors: usize,
@@ -124,6 +125,20 @@ fn accessor_bytes(a: &gltf::Accessor<'_>) -> u64 {
     dense + sparse
 }
 
+/// Whether `a` is all zeros by construction: no buffer view and one sparse entry, with bounds
+/// of zero (the zero POSITION of a target that only carries normals, or the zero NORMAL of a
+/// target that only moves positions).
+fn is_zero(a: &gltf::Accessor<'_>) -> bool {
+    let zero = |b: Option<serde_json::Value>| {
+        b.and_then(|v| v.as_array().cloned())
+            .is_some_and(|v| v.iter().all(|x| x.as_f64() == Some(0.0)))
+    };
+    a.view().is_none()
+        && a.sparse().is_some_and(|s| s.count() == 1)
+        && zero(a.min())
+        && zero(a.max())
+}
+
 /// Adds one to the count of `key`.
 fn tally(counts: &mut Vec<(String, usize)>, key: String) {
     match counts.iter_mut().find(|(k, _)| *k == key) {
@@ -165,7 +180,14 @@ fn encoding(mesh: &gltf::Mesh<'_>, quantized: bool) -> Encoding {
             ),
         ] {
             if let Some(a) = a {
-                tally(counts, component(&a));
+                tally(
+                    counts,
+                    if is_zero(&a) {
+                        "zero".into()
+                    } else {
+                        component(&a)
+                    },
+                );
                 *bytes += accessor_bytes(&a);
                 e.sparse_accessors += usize::from(a.sparse().is_some());
             }

@@ -31,6 +31,9 @@ struct Played {
     default_weights: Vec<f32>,
     extensions_required: Vec<String>,
     position_type: gltf::accessor::DataType,
+    /// The base NORMAL and every target's NORMAL deltas (zero where a target has none).
+    normal_base: Option<Vec<Vec3>>,
+    normal_deltas: Vec<Vec<Vec3>>,
 }
 
 impl Played {
@@ -38,12 +41,12 @@ impl Played {
         self.deltas.len()
     }
 
-    /// World positions at time `t`: weights sampled linearly, base + Σ w·Δ, node transform.
-    fn positions_at(&self, t: f32) -> Vec<Vec3> {
+    /// The weights at time `t`, sampled linearly.
+    fn weights_at(&self, t: f32) -> Vec<f32> {
         let k = self.k();
         let row = |i: usize| &self.weights[i * k..(i + 1) * k];
         let i = self.times.partition_point(|&x| x <= t).max(1) - 1;
-        let w: Vec<f32> = if i + 1 >= self.times.len() {
+        if i + 1 >= self.times.len() {
             row(i).to_vec()
         } else {
             let s = ((t - self.times[i]) / (self.times[i + 1] - self.times[i])).clamp(0.0, 1.0);
@@ -52,7 +55,29 @@ impl Played {
                 .zip(row(i + 1))
                 .map(|(a, b)| a + s * (b - a))
                 .collect()
-        };
+        }
+    }
+
+    /// Unit normals at time `t`: base NORMAL + Σ w·ΔNORMAL, renormalised (the node transform
+    /// is a uniform scale and a translation, which leave normals as they are).
+    fn normals_at(&self, t: f32) -> Vec<Vec3> {
+        let w = self.weights_at(t);
+        let base = self.normal_base.as_ref().expect("a NORMAL attribute");
+        base.iter()
+            .enumerate()
+            .map(|(v, b)| {
+                let mut n = *b;
+                for (d, wk) in self.normal_deltas.iter().zip(&w) {
+                    n += *wk * d[v];
+                }
+                n.normalize()
+            })
+            .collect()
+    }
+
+    /// World positions at time `t`: weights sampled linearly, base + Σ w·Δ, node transform.
+    fn positions_at(&self, t: f32) -> Vec<Vec3> {
+        let w = self.weights_at(t);
         self.base
             .iter()
             .enumerate()
@@ -151,6 +176,16 @@ fn load(path: &Path) -> Played {
         .morph_targets()
         .map(|t| read_vec3(&t.positions().unwrap(), &buffers))
         .collect();
+    let normal_base = prim
+        .get(&gltf::Semantic::Normals)
+        .map(|n| read_vec3(&n, &buffers));
+    let normal_deltas = prim
+        .morph_targets()
+        .map(|t| match t.normals() {
+            Some(n) => read_vec3(&n, &buffers),
+            None => vec![Vec3::ZERO; base.len()],
+        })
+        .collect();
     let anim = doc.animations().next().unwrap();
     let channel = anim.channels().next().unwrap();
     assert_eq!(
@@ -172,6 +207,8 @@ fn load(path: &Path) -> Played {
         default_weights: mesh.weights().unwrap_or_default().to_vec(),
         extensions_required: doc.extensions_required().map(str::to_owned).collect(),
         position_type: pos.data_type(),
+        normal_base,
+        normal_deltas,
     }
 }
 
@@ -208,7 +245,7 @@ fn auto_basis_plays_every_frame_within_the_tolerance_with_few_targets() {
     let basis = report.cache.basis.as_ref().expect("basis stats");
     let played = load(&out);
     // The K basis targets, and the NORMAL offset target when written.
-    let written = basis.targets + usize::from(basis.normal_offset_target);
+    let written = basis.targets + usize::from(basis.normal_offset_target) + basis.normal_targets;
     assert_eq!(played.k(), written);
     assert_eq!(report.cache.stats.targets, written);
     assert!(
@@ -287,7 +324,7 @@ fn quantized_basis_uses_int16_and_stays_within_the_tolerance() {
     let stored: usize = e.target_positions.iter().map(|(_, n)| n).sum();
     assert_eq!(
         stored,
-        basis.targets + usize::from(basis.normal_offset_target)
+        basis.targets + usize::from(basis.normal_offset_target) + basis.normal_targets
     );
     assert_eq!(
         basis.quantization.int8_targets + basis.quantization.int16_targets,
@@ -299,6 +336,55 @@ fn quantized_basis_uses_int16_and_stays_within_the_tolerance() {
     float.output = dir.path().join("float.gltf");
     let rf = bake_cloth(&float, &mut |_, _| {}).unwrap();
     assert!(report.output_bytes < rf.output_bytes);
+
+    // Texture coordinates (within [0, 1]) as normalised u16, the float file's to half a step.
+    let uvs = |path: &Path, want: gltf::accessor::DataType| -> Vec<[f32; 2]> {
+        let bytes = std::fs::read(path).unwrap();
+        let gltf = gltf::Gltf::from_slice_without_validation(&bytes).unwrap();
+        let buffers =
+            gltf::import_buffers(&gltf.document, path.parent(), gltf.blob.clone()).unwrap();
+        let prim = gltf
+            .document
+            .meshes()
+            .next()
+            .unwrap()
+            .primitives()
+            .next()
+            .unwrap();
+        let a = prim.get(&gltf::Semantic::TexCoords(0)).unwrap();
+        assert_eq!(a.data_type(), want);
+        assert_eq!(a.normalized(), want == gltf::accessor::DataType::U16);
+        let view = a.view().unwrap();
+        let data = &buffers[view.buffer().index()].0[view.offset() + a.offset()..];
+        let size = a.data_type().size();
+        let stride = view.stride().unwrap_or(2 * size);
+        (0..a.count())
+            .map(|i| {
+                [0, 1].map(|c| {
+                    let at = i * stride + c * size;
+                    match a.data_type() {
+                        gltf::accessor::DataType::U16 => {
+                            u16::from_le_bytes([data[at], data[at + 1]]) as f32 / 65535.0
+                        }
+                        _ => f32::from_le_bytes(data[at..at + 4].try_into().unwrap()),
+                    }
+                })
+            })
+            .collect()
+    };
+    let (q, f) = (
+        uvs(&out, gltf::accessor::DataType::U16),
+        uvs(&float.output, gltf::accessor::DataType::F32),
+    );
+    assert_eq!(q.len(), f.len());
+    for (a, b) in q.iter().zip(&f) {
+        for c in 0..2 {
+            assert!(
+                (a[c] - b[c]).abs() <= 0.5 / 65535.0 + 1e-7,
+                "{a:?} vs {b:?}"
+            );
+        }
+    }
 }
 
 #[test]
@@ -361,8 +447,11 @@ fn fixed_basis_writes_k_targets_and_more_targets_are_closer() {
         job.quantize = Some(QuantizeMode::Off);
         let r = bake_cloth(&job, &mut |_, _| {}).unwrap();
         let played = load(&out);
-        let offset = r.cache.basis.as_ref().unwrap().normal_offset_target;
-        assert_eq!(played.k(), k + usize::from(offset));
+        let b = r.cache.basis.as_ref().unwrap();
+        assert_eq!(
+            played.k(),
+            k + usize::from(b.normal_offset_target) + b.normal_targets
+        );
         let (e, _) = worst_error(&job, &played, r.fps);
         assert!((e - r.cache.basis.as_ref().unwrap().max_error as f32).abs() < 1e-5);
         errors.push(e);
@@ -442,12 +531,11 @@ fn base_normals_are_the_base_shapes_own_and_every_face_imports_smooth() {
         // The NORMAL offset target, when written, moves nothing and plays at weight 1.
         let played = load(&out);
         if basis.normal_offset_target {
-            assert_eq!(played.k(), basis.targets + 1);
-            assert!(played.deltas[basis.targets]
-                .iter()
-                .all(|d| *d == Vec3::ZERO));
             let k = played.k();
-            assert!(played.weights.chunks(k).all(|w| w[k - 1] == 1.0));
+            assert_eq!(k, basis.targets + 1 + basis.normal_targets);
+            let offset = basis.targets;
+            assert!(played.deltas[offset].iter().all(|d| *d == Vec3::ZERO));
+            assert!(played.weights.chunks(k).all(|w| w[offset] == 1.0));
         }
         let info = scenebake::inspect::inspect(&out).unwrap();
         assert_eq!(info.failures().count(), 0);
@@ -498,4 +586,70 @@ fn base_normals_are_the_base_shapes_own_and_every_face_imports_smooth() {
             .count();
         assert_eq!(flat, 0, "{quantize:?}: faces Blender would import flat");
     }
+}
+
+#[test]
+fn normal_targets_play_the_baked_normals_and_move_nothing() {
+    // The demo's lab_cloth_basis (40×40, 120 frames): small-amplitude basis targets have tiny
+    // weights, so normal deltas shared with them would need f32; normal targets of their own
+    // (zero POSITION, weights of their own) store the normals as int8.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab.glb");
+    let mut job = ClothJob::new(ClothSource::LabCloth { resolution: 40 }, out.clone());
+    job.frames = Some(120);
+    job.basis = Some(BasisSize::Auto);
+    job.basis_tolerance = Some(1e-3);
+    job.quantize = Some(QuantizeMode::Auto);
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let basis = report.cache.basis.as_ref().unwrap();
+    let j = basis.normal_targets;
+    assert!(j > 0, "normal targets written");
+    assert!(basis.normal_offset_target);
+    let played = load(&out);
+    let k = basis.targets;
+    assert_eq!(played.k(), k + 1 + j);
+    // Position targets carry no normal deltas; the offset and normal targets move nothing.
+    for t in 0..k {
+        assert!(played.normal_deltas[t].iter().all(|d| *d == Vec3::ZERO));
+    }
+    for t in k..k + 1 + j {
+        assert!(played.deltas[t].iter().all(|d| *d == Vec3::ZERO));
+    }
+    // Only the position targets' weights need Blender's [0, 1] slider range.
+    assert!(played
+        .weights
+        .chunks(played.k())
+        .all(|w| w[..k].iter().all(|x| (0.0..=1.0).contains(x))));
+    // Positions still within the tolerance.
+    let (worst, _) = worst_error(&job, &played, report.fps);
+    assert!(worst <= 1e-3 + ROUNDING, "{worst} m off");
+
+    // The played normals against the baked shape's own normals, computed here from the
+    // reference simulation: the angles the report gives, and small on average.
+    let (mesh, sim) = reference(&job);
+    let triangles: Vec<[usize; 3]> = mesh
+        .render_triangles
+        .iter()
+        .map(|t| t.map(|i| i as usize))
+        .collect();
+    let (mut largest, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
+    for f in 0..sim.frame_count() {
+        let want = angle_weighted(&reference_positions(&mesh, &sim, f), &triangles);
+        let got = played.normals_at((f as f64 / report.fps) as f32);
+        for (a, b) in got.iter().zip(&want) {
+            let angle = (a.dot(*b).clamp(-1.0, 1.0) as f64).acos().to_degrees();
+            largest = largest.max(angle);
+            sum += angle;
+            n += 1;
+        }
+    }
+    let mean = sum / n as f64;
+    assert!(
+        (largest - basis.max_normal_error_degrees).abs() < 0.05
+            && (mean - basis.mean_normal_error_degrees).abs() < 0.005,
+        "played normals {largest}° / {mean}° against the report's {}° / {}°",
+        basis.max_normal_error_degrees,
+        basis.mean_normal_error_degrees
+    );
+    assert!(mean < 0.2, "mean normal error {mean}°");
 }

@@ -43,6 +43,23 @@
 //! blending; the largest and mean angle between the played normal and the baked one are
 //! reported.
 //!
+//! **Normal targets.** Shared weights have a cost: a quantised target is stored normalised
+//! (its weights carry its amplitude), so small-amplitude targets have tiny weights (0.001 on
+//! the lab grid) and their fitted NORMAL deltas run to ±100, far outside what a normalised
+//! integer holds, so they stay f32 (about 40 % of the lab file). The alternative layout gives
+//! the normals targets of their own: the position targets get zero NORMAL deltas (a one-entry
+//! sparse accessor; three.js would use the base normals as the deltas of a target without
+//! one), and J *normal targets* (zero POSITION; NORMAL the first J directions of a thin SVD of
+//! the residual normals `n_f − n_b − o`, each scaled to a largest component of 1 and stored as
+//! int8, else with the leading third int16, else int16, sparse where smaller; weights of their
+//! own, refitted by least squares per frame, any sign: they move no position, so Blender's
+//! slider range does not matter) carry them, after `normal_offset`. J is the smallest whose
+//! measured normal error is within [`CLAMP_MAX_DEGREES`] / [`CLAMP_MEAN_DEGREES`] of the shared
+//! f32 fit's (with the offset). Of the three layouts (shared deltas without and with the
+//! offset, normal targets), the file written is the smallest whose normal error is within
+//! those margins of the shared layout with the offset (that one when none is), within
+//! `--max-targets` (which counts every target). The report's `normal_targets` gives J.
+//!
 //! **Keyframes.** With `--keyframe-tolerance T`, the weight animation keeps only the frames
 //! needed so that every dropped frame, played back with interpolated weights, is within
 //! `max(T, M)` of the bake (M the basis tolerance): the same greedy forward scan as
@@ -58,20 +75,24 @@
 //! `int16` file, doubled while the measured error stays within the tolerance. The base normals
 //! are `int16` (int8's step, about 0.45°, would round the lean away), shortened so that none is
 //! longer than 1 (Blender tests the stored normal unnormalised), and so is the normal offset
-//! when every component fits in [-1, 1]; each target's NORMAL deltas are `int8` when every component fits in [-1, 1];
-//! the others are `int8` clamped to [-1, 1] when that raises the measured normal error by at
+//! when every component fits in [-1, 1]. In the shared layout each target's NORMAL deltas are
+//! `int8` when every component fits in [-1, 1]; the others are `int8` clamped to [-1, 1] when that raises the measured normal error by at
 //! most 2° (largest) and 0.1° (mean) over the unclamped file (always with `--quantize on`),
 //! else `f32` (sparse where smaller). A target whose weights leave room gets a gain
 //! g = max |normal delta| (weights × g ≤ 1, stored positions ÷ g) that brings its normal
 //! deltas into `int8`; that encoding is measured too and written when within the tolerance and
 //! smaller. Vertex attributes keep 4-byte aligned elements (stride 8
 //! for `int16` VEC3, 4 for `int8` VEC3). `auto` quantises when the measured error stays within
-//! the tolerance, trying up to half as many extra targets again (the file stays smaller than the
-//! `f32` one); `on` always quantises (the error is reported); `off` never.
+//! the tolerance: it tries K from the fewest that fit up to half as many again and keeps the K
+//! whose target positions and weight keys take the fewest bytes (more targets lower the
+//! projection error and leave more of the tolerance to int8 rounding); `on` always quantises
+//! with the K of the f32 file (the error is reported); `off` never. Texture coordinates within
+//! [0, 1] are normalised u16 in a quantised file.
 //!
 //! Sparse targets: `f32` targets go through [`super::compact::delta_accessor`] (vertices whose
-//! delta is zero in every frame, such as pins, are exactly zero in every basis vector); quantised
-//! targets are always dense.
+//! delta is zero in every frame, such as pins, are exactly zero in every basis vector);
+//! quantised POSITION deltas are always dense, quantised NORMAL deltas sparse (no buffer view,
+//! the non-zero elements packed) where that is smaller.
 
 use std::path::Path;
 
@@ -80,7 +101,7 @@ use glam::{DVec3, Vec3};
 use gltf_json as json;
 use json::validation::Checked::Valid;
 
-use super::compact::{delta_accessor, DeltaEncoding};
+use super::compact::{delta_accessor, DeltaEncoding, SparseMode, SPARSE_JSON_OVERHEAD};
 use super::frames::RenderFrames;
 use super::gltf_doc::{primitive, GltfBuilder};
 use super::morph::{
@@ -180,8 +201,10 @@ pub struct Quantization {
     pub int8_targets: usize,
     /// Component type of the base NORMAL: `float` or `int16` (normalised); `none` without normals.
     pub normals: String,
-    /// Targets whose NORMAL deltas are normalised int8 (the others are float).
+    /// Targets whose NORMAL deltas are normalised int8.
     pub int8_normal_targets: usize,
+    /// Targets whose NORMAL deltas are normalised int16 (the others, int8 or float).
+    pub int16_normal_targets: usize,
     /// The node's uniform scale s (world = t + s · stored), 1 unquantised.
     pub node_scale: f64,
     /// The node's translation t, m.
@@ -233,6 +256,9 @@ pub struct BasisStats {
     /// the NORMAL offset from the base shape's own normals to the fitted ones (see
     /// [`super::basis`]); then `targets + 1` targets are written.
     pub normal_offset_target: bool,
+    /// Normal targets (zero POSITION, NORMAL of their own, own weights; counted in the file's
+    /// targets, not in `targets`): 0 unless their file was smaller.
+    pub normal_targets: usize,
     /// Storage of the attributes.
     pub quantization: Quantization,
     /// Bytes per part.
@@ -295,6 +321,16 @@ type Pick = (Candidate, Vec<usize>, f64, usize);
 enum StoredDelta {
     I16(Vec<[i16; 3]>),
     I8(Vec<[i8; 3]>),
+}
+
+impl StoredDelta {
+    /// The values a player reads (normalised to [-1, 1]).
+    fn dequantized(&self) -> Vec<Vec3> {
+        match self {
+            StoredDelta::I16(q) => q.iter().map(|x| dequantize_i16(*x)).collect(),
+            StoredDelta::I8(q) => q.iter().map(|x| dequantize_i8(*x)).collect(),
+        }
+    }
 }
 
 /// Encodes `frames` as a basis cache for `path` (see the module documentation).
@@ -440,54 +476,35 @@ pub fn encode_basis_gltf(
         } else {
             (k0 * 3 / 2).min(cap)
         };
+        // Each K from the fewest that fits: the targets of small amplitude as int8 (see
+        // `with_int8_targets`); the K whose targets take the fewest bytes, stopping after two
+        // K in a row that do not improve on it.
+        let mut best: Option<(Pick, usize)> = None;
+        let mut worse = 0;
         for k in k0..=limit {
             let q = build(frames, &svd, k, true, &[], &[]);
             let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
             let (err, worst) = measure(frames, &q, &keys, options.interpolation);
-            if err <= bound || basis.quantize == QuantizeMode::On {
-                pick = (q, keys, err, worst);
-                break;
+            if err > bound && basis.quantize != QuantizeMode::On {
+                continue;
+            }
+            let mut p = (q, keys, err, worst);
+            if p.2 < bound {
+                p = with_int8_targets(frames, &svd, p, bound, keyframe_tolerance, options);
+            }
+            let bytes = target_bytes(&p);
+            if best.as_ref().is_none_or(|b| bytes < b.1) {
+                best = Some((p, bytes));
+                worse = 0;
+            } else {
+                worse += 1;
+                if worse == 2 {
+                    break;
+                }
             }
         }
-        if pick.0.quantized && pick.2 < bound {
-            // Targets of small amplitude as int8 (half the bytes): the rounding bound of each
-            // is amplitude · s · √3 / 254; take the smallest ones while their bounds add up to
-            // a budget, doubling it while the measured error stays within the tolerance.
-            let (c, k) = (&pick.0, pick.0.k);
-            let step: Vec<f64> = (0..c.k)
-                .map(|t| {
-                    let amplitude = c.weights.iter().map(|w| w[t] as f64).fold(0.0, f64::max);
-                    amplitude * c.scale * 3f64.sqrt() / 254.0
-                })
-                .collect();
-            let mut order: Vec<usize> = (0..k).collect();
-            order.sort_by(|a, b| step[*a].total_cmp(&step[*b]));
-            let mut budget = bound - pick.2;
-            let mut chosen = 0;
-            for _ in 0..6 {
-                let mut int8 = vec![false; k];
-                let mut sum = 0.0;
-                let mut n = 0;
-                for &t in &order {
-                    if sum + step[t] > budget {
-                        break;
-                    }
-                    sum += step[t];
-                    int8[t] = true;
-                    n += 1;
-                }
-                if n > chosen {
-                    let q = build(frames, &svd, k, true, &int8, &[]);
-                    let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
-                    let (err, worst) = measure(frames, &q, &keys, options.interpolation);
-                    if err > bound {
-                        break;
-                    }
-                    chosen = n;
-                    pick = (q, keys, err, worst);
-                }
-                budget *= 2.0;
-            }
+        if let Some((p, _)) = best {
+            pick = p;
         }
     }
     let mut gained: Option<Pick> = None;
@@ -543,40 +560,71 @@ pub fn encode_basis_gltf(
         Some(e) => *e,
         None => projection_errors(frames, &svd, k, f64::NEG_INFINITY)[k - 1],
     };
-    let encode = |(candidate, keys, max_error, worst_frame): Pick, offset: bool| {
+    let size = |e: &EncodedBasis| e.morph.files.iter().map(|(_, b)| b.len()).sum::<usize>();
+    let targets_allowed = |n: usize| basis.max_targets.is_none_or(|m| n <= m);
+    // Writes `pick` with the normals laid out as `layout`; `None` when that layout does not
+    // apply (no normal basis within the margins, or more targets than allowed).
+    let encode = |pick: &Pick, layout: NormalLayout| -> Result<Option<EncodedBasis>> {
+        let (c, keys, max_error, worst_frame) = pick;
+        let normals = if options.normals {
+            match written_normals(mesh, frames, c, keys, options, basis, layout) {
+                Some(n) => Some(n),
+                None => return Ok(None),
+            }
+        } else {
+            None
+        };
+        let extra = normals.as_ref().map_or(0, |n| {
+            usize::from(n.offset.is_some()) + n.basis.as_ref().map_or(0, |b| b.stored.len())
+        });
+        if !targets_allowed(c.k + extra) {
+            return Ok(None);
+        }
         write(
             path,
             mesh,
             frames,
             options,
             basis,
-            candidate,
-            keys,
-            (max_error, worst_frame),
+            c.clone(),
+            keys.clone(),
+            (*max_error, *worst_frame),
             projection_error,
             svd.singular.iter().take(k + 8).copied().collect(),
-            offset,
+            normals,
         )
+        .map(Some)
     };
-    let size = |e: &EncodedBasis| e.morph.files.iter().map(|(_, b)| b.len()).sum::<usize>();
-    // With normals, the NORMAL offset target where the target cap leaves room for it.
-    let offset_allowed = options.normals && basis.max_targets.is_none_or(|m| k < m);
+    // The normal layouts: shared deltas with and without the offset target, and normal
+    // targets of their own. The smallest file whose played normals (what engines show) are
+    // about as close to the bake as the shared deltas with the offset (within the margins used
+    // for clamping normal deltas); that one when no other is.
     let encode = |pick: Pick| -> Result<EncodedBasis> {
-        let plain = encode(pick.clone(), false)?;
-        if !offset_allowed {
+        let plain = encode(&pick, NormalLayout::Shared { offset: false })?
+            .expect("shared normals always apply within the targets chosen");
+        if !options.normals {
             return Ok(plain);
         }
-        let with = encode(pick, true)?;
-        // The file without it only when smaller and its played normals (what engines show) are
-        // about as close to the bake: within the margins used for clamping normal deltas.
-        let (p, w) = (&plain.basis, &with.basis);
-        let close = p.max_normal_error_degrees <= w.max_normal_error_degrees + CLAMP_MAX_DEGREES
-            && p.mean_normal_error_degrees <= w.mean_normal_error_degrees + CLAMP_MEAN_DEGREES;
-        Ok(if size(&plain) <= size(&with) && close {
-            plain
-        } else {
-            with
-        })
+        let Some(with) = encode(&pick, NormalLayout::Shared { offset: true })? else {
+            return Ok(plain);
+        };
+        let reference = (
+            with.basis.max_normal_error_degrees,
+            with.basis.mean_normal_error_degrees,
+        );
+        let close = |e: &EncodedBasis| {
+            e.basis.max_normal_error_degrees <= reference.0 + CLAMP_MAX_DEGREES
+                && e.basis.mean_normal_error_degrees <= reference.1 + CLAMP_MEAN_DEGREES
+        };
+        let own = encode(&pick, NormalLayout::Basis)?;
+        Ok([Some(plain), own]
+            .into_iter()
+            .flatten()
+            .filter(|e| close(e))
+            .fold(
+                with,
+                |best, e| if size(&e) < size(&best) { e } else { best },
+            ))
     };
     let first = encode(pick)?;
     // Keep the normal-gained encoding only when its file is smaller.
@@ -591,6 +639,70 @@ pub fn encode_basis_gltf(
         }
         None => Ok(first),
     }
+}
+
+/// Binary bytes of a quantised pick's target positions and weight keys.
+fn target_bytes((c, keys, _, _): &Pick) -> usize {
+    let v = c.base.len();
+    let positions: usize = c
+        .deltas_q
+        .iter()
+        .map(|d| match d {
+            StoredDelta::I16(_) => 8 * v,
+            StoredDelta::I8(_) => 4 * v,
+        })
+        .sum();
+    positions + 4 * keys.len() * c.k
+}
+
+/// `pick` (quantised, its measured error below `bound`) with its targets of small amplitude as
+/// int8 (half the bytes of int16): the rounding bound of each is amplitude · s · √3 / 254; the
+/// smallest ones are taken while their bounds add up to a budget (the tolerance the int16 file
+/// leaves), doubled while the measured error stays within `bound`.
+fn with_int8_targets(
+    frames: &RenderFrames,
+    svd: &Svd,
+    mut pick: Pick,
+    bound: f64,
+    keyframe_tolerance: Option<f64>,
+    options: &MorphOptions,
+) -> Pick {
+    let (c, k) = (&pick.0, pick.0.k);
+    let step: Vec<f64> = (0..c.k)
+        .map(|t| {
+            let amplitude = c.weights.iter().map(|w| w[t] as f64).fold(0.0, f64::max);
+            amplitude * c.scale * 3f64.sqrt() / 254.0
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..k).collect();
+    order.sort_by(|a, b| step[*a].total_cmp(&step[*b]));
+    let mut budget = bound - pick.2;
+    let mut chosen = 0;
+    for _ in 0..6 {
+        let mut int8 = vec![false; k];
+        let mut sum = 0.0;
+        let mut n = 0;
+        for &t in &order {
+            if sum + step[t] > budget {
+                break;
+            }
+            sum += step[t];
+            int8[t] = true;
+            n += 1;
+        }
+        if n > chosen {
+            let q = build(frames, svd, k, true, &int8, &[]);
+            let keys = select_keys(frames, &q, keyframe_tolerance.map(|_| bound), options);
+            let (err, worst) = measure(frames, &q, &keys, options.interpolation);
+            if err > bound {
+                break;
+            }
+            chosen = n;
+            pick = (q, keys, err, worst);
+        }
+        budget *= 2.0;
+    }
+    pick
 }
 
 /// The thin SVD of the frame deltas from frame 0 (rows: vertex coordinates; columns: frames
@@ -882,19 +994,29 @@ fn played_weights(
     j: usize,
     interpolation: Interpolation,
 ) -> Vec<f32> {
+    interpolated_weights(&c.weights, keys, j, interpolation)
+}
+
+/// Row `j` of `weights` (one row per frame) as a player evaluates it from the keys `keys`.
+fn interpolated_weights(
+    weights: &[Vec<f32>],
+    keys: &[usize],
+    j: usize,
+    interpolation: Interpolation,
+) -> Vec<f32> {
     let at = keys.partition_point(|&key| key <= j) - 1;
     let a = keys[at];
     if a == j || at + 1 == keys.len() {
-        return c.weights[a].clone();
+        return weights[a].clone();
     }
     match interpolation {
-        Interpolation::Step => c.weights[a].clone(),
+        Interpolation::Step => weights[a].clone(),
         Interpolation::Linear => {
             let b = keys[at + 1];
             let t = (j - a) as f32 / (b - a) as f32;
-            c.weights[a]
+            weights[a]
                 .iter()
-                .zip(&c.weights[b])
+                .zip(&weights[b])
                 .map(|(x, y)| x + t * (y - x))
                 .collect()
         }
@@ -1018,19 +1140,9 @@ fn fit_normals(frames: &RenderFrames, c: &Candidate, base: &[Vec3], j: usize) ->
     fit_normal_deltas(frames, c, base, j, false).1
 }
 
-/// Like [`fit_normals`], with one more unknown per vertex: a constant offset added to `base`
-/// (the NORMAL of a target whose weight is 1 in every frame). Returns the offsets and deltas.
-fn fit_normals_with_offset(
-    frames: &RenderFrames,
-    c: &Candidate,
-    base: &[Vec3],
-    j: usize,
-) -> (Vec<Vec3>, Vec<Vec<Vec3>>) {
-    fit_normal_deltas(frames, c, base, j, true)
-}
-
 /// The least squares of [`fit_normals`] (regressors: the first `j` weights) and, with
-/// `intercept`, of [`fit_normals_with_offset`] (regressors [1, weights]: the offsets come
+/// `intercept`, with one more unknown per vertex: a constant offset added to `base` (the NORMAL
+/// of a target whose weight is 1 in every frame; regressors [1, weights]: the offsets come
 /// first; a normal that never changes then gets its offset alone and exactly zero deltas, so
 /// they stay sparse). The normal matrix is shared by every vertex. Returns the offsets (zero
 /// without `intercept`) and the deltas.
@@ -1117,22 +1229,34 @@ fn dequantize_i8(q: [i8; 3]) -> Vec3 {
     Vec3::from_array(q.map(|c| (c as f32 / I8 as f32).max(-1.0)))
 }
 
-/// Largest and mean angle (degrees) between the played normals and the baked ones.
+/// Targets' NORMAL deltas and their weights (one row per frame).
+type NormalLayer<'a> = (&'a [Vec<Vec3>], &'a [Vec<f32>]);
+
+/// The `normal_offset` target's NORMAL as read, and its int16 values when quantised.
+type StoredOffset = (Vec<Vec3>, Option<Vec<[i16; 3]>>);
+
+/// Largest and mean angle (degrees) between the played normals and the baked ones: `base`
+/// plus every layer's deltas times its weights (F × targets, interpolated at dropped frames
+/// as a player does), renormalised.
 fn normal_errors(
     frames: &RenderFrames,
-    c: &Candidate,
     keys: &[usize],
     interpolation: Interpolation,
     base: &[Vec3],
-    deltas: &[Vec<Vec3>],
+    layers: &[NormalLayer<'_>],
 ) -> (f64, f64) {
     let (mut worst, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
     for j in 0..frames.frame_count() {
-        let w = played_weights(c, keys, j, interpolation);
+        let w: Vec<Vec<f32>> = layers
+            .iter()
+            .map(|(_, weights)| interpolated_weights(weights, keys, j, interpolation))
+            .collect();
         for (i, want) in frames.normals(j).iter().enumerate() {
             let mut m = base[i];
-            for (d, wk) in deltas.iter().zip(&w) {
-                m += *wk * d[i];
+            for ((deltas, _), w) in layers.iter().zip(&w) {
+                for (d, wk) in deltas.iter().zip(w) {
+                    m += *wk * d[i];
+                }
             }
             let cos = m.normalize_or_zero().as_dvec3().dot(want.as_dvec3());
             let angle = cos.clamp(-1.0, 1.0).acos().to_degrees();
@@ -1142,6 +1266,355 @@ fn normal_errors(
         }
     }
     (worst, sum / n.max(1) as f64)
+}
+
+/// How the NORMAL deltas are laid out over the targets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum NormalLayout {
+    /// Each position target carries NORMAL deltas fitted given its weights; with `offset`, one
+    /// more target, `normal_offset` (zero POSITION, weight 1 in every key), carries the
+    /// constant term.
+    Shared { offset: bool },
+    /// The position targets carry zero NORMAL deltas; `normal_offset` and J *normal targets*
+    /// (zero POSITION, weights of their own) carry the normals (see [`normal_basis`]).
+    Basis,
+}
+
+/// The normals as written: the base NORMAL, each target's NORMAL deltas, the `normal_offset`
+/// target's NORMAL and the normal targets, each as a player reads it, with the stored integers
+/// when quantised.
+struct WrittenNormals {
+    base: Vec<Vec3>,
+    base_q: Option<Vec<[i16; 3]>>,
+    deltas: Vec<Vec<Vec3>>,
+    /// Per target: its normalised integers, or `None` for f32.
+    deltas_q: Vec<Option<StoredDelta>>,
+    /// The offset target's NORMAL as read, and its int16 values when quantised.
+    offset: Option<StoredOffset>,
+    /// What a player adds up before the deltas: the base, plus the offset at weight 1.
+    played_base: Vec<Vec3>,
+    /// With [`NormalLayout::Basis`].
+    basis: Option<NormalBasis>,
+}
+
+impl WrittenNormals {
+    /// Largest and mean angle (degrees) between the played normals and the baked ones.
+    fn errors(
+        &self,
+        frames: &RenderFrames,
+        c: &Candidate,
+        keys: &[usize],
+        interpolation: Interpolation,
+    ) -> (f64, f64) {
+        let mut layers = vec![(&self.deltas[..], &c.weights[..])];
+        if let Some(n) = &self.basis {
+            layers.push((&n.read[..], &n.weights[..]));
+        }
+        normal_errors(frames, keys, interpolation, &self.played_base, &layers)
+    }
+}
+
+/// Normal targets: directions of their own for the normals, with free weights.
+struct NormalBasis {
+    /// Each target's normalised integers (its largest component is ±1 before rounding).
+    stored: Vec<StoredDelta>,
+    /// As a player reads them.
+    read: Vec<Vec<Vec3>>,
+    /// Weights of every frame (F × J), any sign.
+    weights: Vec<Vec<f32>>,
+}
+
+/// The normals of candidate `c` laid out as `layout` (see the module documentation); `None`
+/// when [`NormalLayout::Basis`] finds no normal basis within the margins or `c` is not
+/// quantised.
+///
+/// The base NORMAL is the base shape's own normals (int16 when quantised). With
+/// [`NormalLayout::Shared`], each target's deltas are fitted given its weights; quantised, a
+/// target's deltas are int8 when every component fits in [-1, 1], and the others are int8
+/// clamped when that raises the measured normal error by at most [`CLAMP_MAX_DEGREES`] /
+/// [`CLAMP_MEAN_DEGREES`] (always with `--quantize on`), else f32.
+fn written_normals(
+    mesh: &Mesh,
+    frames: &RenderFrames,
+    c: &Candidate,
+    keys: &[usize],
+    options: &MorphOptions,
+    basis: &BasisOptions,
+    layout: NormalLayout,
+) -> Option<WrittenNormals> {
+    let (base, base_q) = stored_base_normals(&base_shape_normals(mesh, frames, c), c.quantized);
+    let offset = layout != NormalLayout::Shared { offset: false };
+    let (o, deltas) = fit_normal_deltas(frames, c, &base, c.k, offset);
+    // The offset as int16 when quantised and every component fits (int8's step would show in
+    // every frame's normal).
+    let (o, o_q) = if c.quantized && o.iter().all(|x| x.abs().max_element() <= 1.0) {
+        let q: Vec<[i16; 3]> = o.iter().map(|x| quantize_i16(x.as_dvec3())).collect();
+        (q.iter().map(|x| dequantize_i16(*x)).collect(), Some(q))
+    } else {
+        (o, None)
+    };
+    let played_base = if offset {
+        base.iter().zip(&o).map(|(b, o)| *b + *o).collect()
+    } else {
+        base.clone()
+    };
+    let fitted = WrittenNormals {
+        base,
+        base_q,
+        deltas,
+        deltas_q: vec![None; c.k],
+        offset: offset.then_some((o, o_q)),
+        played_base,
+        basis: None,
+    };
+    let exact = || fitted.errors(frames, c, keys, options.interpolation);
+    if fitted.base_q.is_none() {
+        return (layout != NormalLayout::Basis).then_some(fitted);
+    }
+    if layout == NormalLayout::Basis {
+        let (max, mean) = exact();
+        let accept =
+            |e: (f64, f64)| e.0 <= max + CLAMP_MAX_DEGREES && e.1 <= mean + CLAMP_MEAN_DEGREES;
+        let nb = normal_basis(
+            frames,
+            &fitted.played_base,
+            keys,
+            options.interpolation,
+            c.k,
+            accept,
+        )?;
+        let v = frames.vertex_count();
+        return Some(WrittenNormals {
+            deltas: vec![vec![Vec3::ZERO; v]; c.k],
+            basis: Some(nb),
+            ..fitted
+        });
+    }
+    // Each target's deltas as int8 where every component fits in [-1, 1]; the others as int8
+    // clamped when that costs little (measured), else f32.
+    let fits: Vec<bool> = fitted
+        .deltas
+        .iter()
+        .map(|t| t.iter().all(|x| x.abs().max_element() <= 1.0))
+        .collect();
+    let encode = |clamp: bool| {
+        let (mut read, mut stored) = (Vec::new(), Vec::new());
+        for (t, fit) in fitted.deltas.iter().zip(&fits) {
+            if *fit || clamp {
+                let q = StoredDelta::I8(t.iter().map(|x| quantize_i8(*x)).collect());
+                read.push(q.dequantized());
+                stored.push(Some(q));
+            } else {
+                read.push(t.clone());
+                stored.push(None);
+            }
+        }
+        (read, stored)
+    };
+    let with = |(deltas, deltas_q): (Vec<Vec<Vec3>>, Vec<Option<StoredDelta>>)| WrittenNormals {
+        base: fitted.base.clone(),
+        base_q: fitted.base_q.clone(),
+        deltas,
+        deltas_q,
+        offset: fitted.offset.clone(),
+        played_base: fitted.played_base.clone(),
+        basis: None,
+    };
+    let unclamped = with(encode(false));
+    if fits.iter().all(|f| *f) {
+        return Some(unclamped);
+    }
+    let clamped = with(encode(true));
+    let (e, ec) = (
+        unclamped.errors(frames, c, keys, options.interpolation),
+        clamped.errors(frames, c, keys, options.interpolation),
+    );
+    Some(
+        if basis.quantize == QuantizeMode::On
+            || (ec.0 <= e.0 + CLAMP_MAX_DEGREES && ec.1 <= e.1 + CLAMP_MEAN_DEGREES)
+        {
+            clamped
+        } else {
+            unclamped
+        },
+    )
+}
+
+/// A basis for the normals alone: the residual normals `n_f − (n_b + o)` of every frame (a
+/// 3V × F matrix) get a thin SVD, and the first J directions become *normal targets*: POSITION
+/// zero (Blender, which drops NORMAL deltas, shows nothing for them), NORMAL the direction
+/// scaled so that its largest component is 1, as normalised int8 (else the leading third
+/// int16, else all int16), and weights of
+/// their own, refitted per frame by least squares against the stored values (free in sign and
+/// size: they move no position, so Blender's slider range does not matter). J is the smallest,
+/// up to `cap`, whose played normals (interpolated weights at dropped frames, renormalised)
+/// are accepted by `accept` (largest and mean angle to the baked normals, degrees). Shared
+/// weights tie the normals to the position motion, whose small-amplitude targets have tiny
+/// weights and so need normal deltas far outside what a normalised integer holds; normal
+/// targets of their own need neither f32 nor one target per position target.
+fn normal_basis(
+    frames: &RenderFrames,
+    played_base: &[Vec3],
+    keys: &[usize],
+    interpolation: Interpolation,
+    cap: usize,
+    accept: impl Fn((f64, f64)) -> bool,
+) -> Option<NormalBasis> {
+    let (f, v) = (frames.frame_count(), frames.vertex_count());
+    let residual = |i: usize, j: usize| -> f64 {
+        (frames.normals(j)[i / 3][i % 3] - played_base[i / 3][i % 3]) as f64
+    };
+    let r = Mat::<f64>::from_fn(3 * v, f, residual);
+    let svd = r.thin_svd().ok()?;
+    let (u, s) = (svd.U(), svd.S().column_vector());
+    let scale = s[0].max(f64::MIN_POSITIVE);
+    let rank = (0..s.nrows()).take_while(|&k| s[k] > scale * 1e-12).count();
+    let cap = cap.min(rank);
+    // Three precisions, tried in turn: every direction as int8; the leading third (largest
+    // singular values, so largest weights and rounding) as int16 and the rest int8; all int16.
+    for int16_first in [0, cap.div_ceil(3), cap] {
+        // Every direction stored, and its Gram matrix and right-hand sides against every frame.
+        let stored: Vec<StoredDelta> = (0..cap)
+            .map(|k| {
+                let int8 = k >= int16_first;
+                let largest = (0..3 * v).map(|i| u[(i, k)].abs()).fold(0.0, f64::max);
+                let d = (0..v).map(|i| {
+                    DVec3::new(u[(3 * i, k)], u[(3 * i + 1, k)], u[(3 * i + 2, k)]) / largest
+                });
+                if int8 {
+                    StoredDelta::I8(d.map(|x| quantize_i8(x.as_vec3())).collect())
+                } else {
+                    StoredDelta::I16(d.map(quantize_i16).collect())
+                }
+            })
+            .collect();
+        let read: Vec<Vec<Vec3>> = stored.iter().map(StoredDelta::dequantized).collect();
+        let mut gram = vec![0.0f64; cap * cap];
+        for a in 0..cap {
+            for b in 0..=a {
+                let g: f64 = read[a]
+                    .iter()
+                    .zip(&read[b])
+                    .map(|(x, y)| x.as_dvec3().dot(y.as_dvec3()))
+                    .sum();
+                gram[a * cap + b] = g;
+                gram[b * cap + a] = g;
+            }
+        }
+        let rhs: Vec<Vec<f64>> = (0..f)
+            .map(|j| {
+                (0..cap)
+                    .map(|a| {
+                        read[a]
+                            .iter()
+                            .enumerate()
+                            .map(|(i, x)| {
+                                let n = frames.normals(j)[i] - played_base[i];
+                                x.as_dvec3().dot(n.as_dvec3())
+                            })
+                            .sum()
+                    })
+                    .collect()
+            })
+            .collect();
+        for n in 1..=cap {
+            let g: Vec<f64> = (0..n * n).map(|x| gram[(x / n) * cap + x % n]).collect();
+            let l = cholesky(&g, n);
+            let weights: Vec<Vec<f32>> = rhs
+                .iter()
+                .map(|b| {
+                    cholesky_solve(&l, n, b[..n].to_vec())
+                        .into_iter()
+                        .map(|x| x as f32)
+                        .collect()
+                })
+                .collect();
+            let e = normal_errors(
+                frames,
+                keys,
+                interpolation,
+                played_base,
+                &[(&read[..n], &weights)],
+            );
+            if accept(e) {
+                return Some(NormalBasis {
+                    stored: stored[..n].to_vec(),
+                    read: read[..n].to_vec(),
+                    weights,
+                });
+            }
+        }
+    }
+    None
+}
+
+/// Writes one quantised morph-target delta accessor (normalised int8 or int16 VEC3), sparse
+/// (no buffer view, the non-zero elements packed) when `mode` allows it and that is smaller
+/// than the dense attribute (elements padded to 4 bytes).
+fn quantized_delta_accessor(
+    b: &mut GltfBuilder,
+    q: &StoredDelta,
+    mode: SparseMode,
+) -> (json::Index<json::Accessor>, DeltaEncoding) {
+    let (count, mut changed, size) = match q {
+        StoredDelta::I8(q) => (q.len(), nonzero(q, [0; 3]), 1),
+        StoredDelta::I16(q) => (q.len(), nonzero(q, [0; 3]), 2),
+    };
+    if changed.is_empty() {
+        changed.push(0);
+    }
+    let index = if count <= 1 << 16 { 2 } else { 4 };
+    let sparse = (changed.len() * index).next_multiple_of(4)
+        + (changed.len() * 3 * size).next_multiple_of(4)
+        + SPARSE_JSON_OVERHEAD;
+    let dense = count * (3 * size).next_multiple_of(4);
+    if mode == SparseMode::Off || sparse >= dense {
+        let a = match q {
+            StoredDelta::I8(q) => i8_vec3(b, q, false),
+            StoredDelta::I16(q) => i16_vec3(b, q, Some(json::buffer::Target::ArrayBuffer), false),
+        };
+        return (a, DeltaEncoding::Dense);
+    }
+    let (values, component): (Vec<u8>, _) = match q {
+        StoredDelta::I8(q) => (
+            changed
+                .iter()
+                .flat_map(|&i| q[i as usize].map(|c| c as u8))
+                .collect(),
+            json::accessor::ComponentType::I8,
+        ),
+        StoredDelta::I16(q) => (
+            changed
+                .iter()
+                .flat_map(|&i| {
+                    q[i as usize]
+                        .iter()
+                        .flat_map(|c| c.to_le_bytes())
+                        .collect::<Vec<_>>()
+                })
+                .collect(),
+            json::accessor::ComponentType::I16,
+        ),
+    };
+    let a = b.sparse_accessor(
+        count,
+        &changed,
+        &values,
+        json::accessor::Type::Vec3,
+        component,
+        true,
+        (None, None),
+    );
+    (a, DeltaEncoding::Sparse)
+}
+
+/// Indices of the elements of `q` other than `zero`, increasing.
+fn nonzero<T: PartialEq + Copy>(q: &[T], zero: T) -> Vec<u32> {
+    q.iter()
+        .enumerate()
+        .filter(|(_, x)| **x != zero)
+        .map(|(i, _)| i as u32)
+        .collect()
 }
 
 /// Writes the chosen candidate.
@@ -1160,9 +1633,8 @@ fn write(
     (max_error, worst_frame): (f64, usize),
     projection_error: f64,
     singular_values: Vec<f64>,
-    offset: bool,
+    normals: Option<WrittenNormals>,
 ) -> Result<EncodedBasis> {
-    let offset = offset && options.normals;
     let mut b = GltfBuilder::new();
     let mut bytes = PartBytes::default();
     let array = Some(json::buffer::Target::ArrayBuffer);
@@ -1176,99 +1648,23 @@ fn write(
         target_bytes: 0,
     };
 
-    // Normals: the base shape's own (see `base_shape_normals`), int16 when quantised; each
-    // target's deltas fitted to them, as int8 when every component fits in [-1, 1] (else f32,
-    // sparse where smaller).
-    let normals = options.normals.then(|| {
-        let (nb_s, nb_q) = stored_base_normals(&base_shape_normals(mesh, frames, &c), c.quantized);
-        let (off, nd) = if offset {
-            let (o, d) = fit_normals_with_offset(frames, &c, &nb_s, c.k);
-            (Some(o), d)
-        } else {
-            (None, fit_normals(frames, &c, &nb_s, c.k))
-        };
-        // The offset target's values: int16 when quantised and every component fits (int8's
-        // step would show in every frame's normal).
-        let off = off.map(|o| {
-            if c.quantized && o.iter().all(|x| x.abs().max_element() <= 1.0) {
-                let q: Vec<[i16; 3]> = o.iter().map(|x| quantize_i16(x.as_dvec3())).collect();
-                (
-                    q.iter().map(|x| dequantize_i16(*x)).collect::<Vec<_>>(),
-                    Some(q),
-                )
-            } else {
-                (o, None)
-            }
-        });
-        // What a player adds up before the deltas: the base, plus the offset at weight 1.
-        let played_base: Vec<Vec3> = match &off {
-            Some((o, _)) => nb_s.iter().zip(o).map(|(b, o)| *b + *o).collect(),
-            None => nb_s.clone(),
-        };
-        let Some(nb_q) = nb_q else {
-            let n = nd.len();
-            return (nb_s, None, nd, vec![None; n], off, played_base);
-        };
-        // Each target's deltas as int8 where every component fits in [-1, 1]; the others as
-        // int8 clamped when that costs little (measured), else f32.
-        let fits: Vec<bool> = nd
-            .iter()
-            .map(|t| t.iter().all(|x| x.abs().max_element() <= 1.0))
-            .collect();
-        let encode = |clamp: bool| {
-            let (mut nd_s, mut nd_q) = (Vec::new(), Vec::new());
-            for (t, fit) in nd.iter().zip(&fits) {
-                if *fit || clamp {
-                    let q: Vec<[i8; 3]> = t.iter().map(|x| quantize_i8(*x)).collect();
-                    nd_s.push(q.iter().map(|x| dequantize_i8(*x)).collect::<Vec<_>>());
-                    nd_q.push(Some(q));
-                } else {
-                    nd_s.push(t.clone());
-                    nd_q.push(None);
-                }
-            }
-            (nd_s, nd_q)
-        };
-        let (nd_s, nd_q) = encode(false);
-        if fits.iter().all(|f| *f) {
-            return (nb_s, Some(nb_q), nd_s, nd_q, off, played_base);
-        }
-        let exact = normal_errors(
-            frames,
-            &c,
-            &keys,
-            options.interpolation,
-            &played_base,
-            &nd_s,
-        );
-        let (cd_s, cd_q) = encode(true);
-        let clamped = normal_errors(
-            frames,
-            &c,
-            &keys,
-            options.interpolation,
-            &played_base,
-            &cd_s,
-        );
-        if basis.quantize == QuantizeMode::On
-            || (clamped.0 <= exact.0 + CLAMP_MAX_DEGREES
-                && clamped.1 <= exact.1 + CLAMP_MEAN_DEGREES)
-        {
-            (nb_s, Some(nb_q), cd_s, cd_q, off, played_base)
-        } else {
-            (nb_s, Some(nb_q), nd_s, nd_q, off, played_base)
-        }
-    });
-    let normals_i8 = normals.as_ref().is_some_and(|n| n.1.is_some());
-    let int8_normal_targets = normals
-        .as_ref()
-        .map_or(0, |n| n.3.iter().filter(|q| q.is_some()).count());
-    let (max_normal, mean_normal) = match &normals {
-        Some((_, _, nd, _, _, pb)) => {
-            normal_errors(frames, &c, &keys, options.interpolation, pb, nd)
-        }
-        None => (0.0, 0.0),
+    // Normals (see `written_normals`).
+    let normals_q = normals.as_ref().is_some_and(|n| n.base_q.is_some());
+    let count_normal_targets = |want: fn(&StoredDelta) -> bool| {
+        normals.as_ref().map_or(0, |n| {
+            n.deltas_q
+                .iter()
+                .flatten()
+                .chain(n.basis.iter().flat_map(|nb| &nb.stored))
+                .filter(|q| want(q))
+                .count()
+        })
     };
+    let int8_normal_targets = count_normal_targets(|q| matches!(q, StoredDelta::I8(_)));
+    let int16_normal_targets = count_normal_targets(|q| matches!(q, StoredDelta::I16(_)));
+    let (max_normal, mean_normal) = normals.as_ref().map_or((0.0, 0.0), |n| {
+        n.errors(frames, &c, &keys, options.interpolation)
+    });
 
     // Base primitive.
     let start = b.buffer_len();
@@ -1279,10 +1675,10 @@ fn write(
         b.vec3(&c.base, array, true)
     };
     attributes.insert(Valid(json::mesh::Semantic::Positions), positions);
-    if let Some((nb, q, _, _, _, _)) = &normals {
-        let n = match q {
+    if let Some(n) = &normals {
+        let n = match &n.base_q {
             Some(nb_q) => i16_vec3(&mut b, nb_q, array, false),
-            None => b.vec3(nb, array, false),
+            None => b.vec3(&n.base, array, false),
         };
         attributes.insert(Valid(json::mesh::Semantic::Normals), n);
     }
@@ -1292,7 +1688,28 @@ fn write(
             .iter()
             .map(|v| flip_v(v.uv.unwrap_or_default()))
             .collect();
-        attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), b.vec2(&uvs));
+        // Quantised, texture coordinates within [0, 1] as normalised u16 (KHR_mesh_quantization;
+        // a step of 1/65535, under 0.07 texel of an 8K texture): half the bytes of f32.
+        let in_unit = uvs.iter().flatten().all(|x| (0.0..=1.0).contains(x));
+        let uv = if c.quantized && in_unit {
+            let bytes: Vec<u8> = uvs
+                .iter()
+                .flatten()
+                .flat_map(|x| ((x * 65535.0).round() as u16).to_le_bytes())
+                .collect();
+            b.accessor(
+                &bytes,
+                uvs.len(),
+                json::accessor::Type::Vec2,
+                json::accessor::ComponentType::U16,
+                array,
+                None,
+                true,
+            )
+        } else {
+            b.vec2(&uvs)
+        };
+        attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), uv);
     }
     bytes.base = (b.buffer_len() - start) as u64;
     let start = b.buffer_len();
@@ -1317,19 +1734,24 @@ fn write(
         };
         bytes.target_positions += (b.buffer_len() - start) as u64;
         let start = b.buffer_len();
-        let normals = normals
-            .as_ref()
-            .map(|(_, _, nd, nd_q, _, _)| match &nd_q[t] {
-                Some(q) => {
-                    stats.dense_accessors += 1;
-                    i8_vec3(&mut b, q, false)
-                }
-                None => {
-                    let (a, e) = delta_accessor(&mut b, &nd[t], options.sparse, false);
-                    count(&mut stats, e);
-                    a
-                }
-            });
+        let normals = normals.as_ref().map(|n| match &n.deltas_q[t] {
+            // Zero: a one-entry sparse accessor (every target has a NORMAL: three.js uses
+            // the base normals as the deltas of a target without one).
+            None if n.basis.is_some() => {
+                stats.sparse_accessors += 1;
+                zero_vec3(&mut b, frames.vertex_count())
+            }
+            Some(q) => {
+                let (a, e) = quantized_delta_accessor(&mut b, q, options.sparse);
+                count(&mut stats, e);
+                a
+            }
+            None => {
+                let (a, e) = delta_accessor(&mut b, &n.deltas[t], options.sparse, false);
+                count(&mut stats, e);
+                a
+            }
+        });
         bytes.target_normals += (b.buffer_len() - start) as u64;
         targets.push(json::mesh::MorphTarget {
             positions: Some(positions),
@@ -1338,12 +1760,10 @@ fn write(
         });
     }
     let mut names: Vec<String> = (1..=c.k).map(|t| format!("basis_{t:02}")).collect();
-    let offset_target = normals.as_ref().and_then(|n| n.4.as_ref());
+    let offset_target = normals.as_ref().and_then(|n| n.offset.as_ref());
     if let Some((o, o_q)) = offset_target {
-        // Zero POSITION deltas: a sparse accessor without a buffer view (all zeros) listing
-        // vertex 0's zero (the gltf crate wants a buffer view or sparse values), bounds 0.
         let start = b.buffer_len();
-        let zero = b.sparse_vec3(&vec![Vec3::ZERO; frames.vertex_count()], &[0], true);
+        let zero = zero_vec3(&mut b, frames.vertex_count());
         stats.sparse_accessors += 1;
         bytes.target_positions += (b.buffer_len() - start) as u64;
         let start = b.buffer_len();
@@ -1367,7 +1787,33 @@ fn write(
         names.push("normal_offset".into());
         stats.targets += 1;
     }
+    let normal_basis = normals.as_ref().and_then(|n| n.basis.as_ref());
+    for (j, q) in normal_basis.iter().flat_map(|n| &n.stored).enumerate() {
+        let start = b.buffer_len();
+        let zero = zero_vec3(&mut b, frames.vertex_count());
+        stats.sparse_accessors += 1;
+        bytes.target_positions += (b.buffer_len() - start) as u64;
+        let start = b.buffer_len();
+        let (n, e) = quantized_delta_accessor(&mut b, q, options.sparse);
+        count(&mut stats, e);
+        bytes.target_normals += (b.buffer_len() - start) as u64;
+        targets.push(json::mesh::MorphTarget {
+            positions: Some(zero),
+            normals: Some(n),
+            tangents: None,
+        });
+        names.push(format!("normal_{:02}", j + 1));
+        stats.targets += 1;
+    }
     let offset_weight = offset_target.map(|_| 1.0f32);
+    // Every key's weights: the position targets', the offset's, the normal targets'.
+    let frame_weights = |k: usize| {
+        c.weights[k].iter().copied().chain(offset_weight).chain(
+            normal_basis
+                .iter()
+                .flat_map(move |n| n.weights[k].iter().copied()),
+        )
+    };
     stats.target_bytes = bytes.target_positions + bytes.target_normals;
     let material = cloth_material(&mut b);
     let to_raw = |value: serde_json::Value| {
@@ -1387,7 +1833,7 @@ fn write(
                 json::mesh::Mode::Triangles,
             )
         }],
-        weights: Some(c.weights[0].iter().copied().chain(offset_weight).collect()),
+        weights: Some(frame_weights(0).collect()),
         extensions: None,
         extras: Some(to_raw(serde_json::json!({ "targetNames": names }))?),
     });
@@ -1402,17 +1848,14 @@ fn write(
 
     // Weights: one key per kept frame at its true time.
     let start = b.buffer_len();
-    let weights: Vec<f32> = keys
-        .iter()
-        .flat_map(|&k| c.weights[k].iter().copied().chain(offset_weight))
-        .collect();
+    let weights: Vec<f32> = keys.iter().flat_map(|&k| frame_weights(k)).collect();
     push_weights_animation(&mut b, node, &keys, &weights, options);
     bytes.animation = (b.buffer_len() - start) as u64;
     super::playback::stamp(
         &mut b.root,
         &super::playback::Playback::frames(options.fps, frames.frame_count(), &options.name),
     );
-    if c.quantized || normals_i8 {
+    if c.quantized || normals_q {
         b.root.extensions_used.push(KHR_MESH_QUANTIZATION.into());
         b.root
             .extensions_required
@@ -1424,7 +1867,7 @@ fn write(
     bytes.json = total - bin;
     let quantization = Quantization {
         positions: if c.quantized { "int16" } else { "float" }.into(),
-        normals: match (&normals, normals_i8) {
+        normals: match (&normals, normals_q) {
             (None, _) => "none",
             (Some(_), true) => "int16",
             (Some(_), false) => "float",
@@ -1441,6 +1884,7 @@ fn write(
             .filter(|d| matches!(d, StoredDelta::I8(_)))
             .count(),
         int8_normal_targets,
+        int16_normal_targets,
         node_scale: c.scale,
         node_translation: c.translation.to_array(),
     };
@@ -1456,11 +1900,18 @@ fn write(
             max_normal_error_degrees: max_normal,
             mean_normal_error_degrees: mean_normal,
             normal_offset_target: offset_weight.is_some(),
+            normal_targets: normal_basis.map_or(0, |n| n.stored.len()),
             singular_values,
             quantization,
             bytes,
         },
     })
+}
+
+/// Zero VEC3 deltas for `count` vertices: a sparse accessor without a buffer view (all zeros)
+/// listing vertex 0's zero (the gltf crate wants a buffer view or sparse values), bounds 0.
+fn zero_vec3(b: &mut GltfBuilder, count: usize) -> json::Index<json::Accessor> {
+    b.sparse_vec3(&vec![Vec3::ZERO; count], &[0], true)
 }
 
 fn count(stats: &mut CacheStats, e: DeltaEncoding) {

@@ -128,7 +128,7 @@ pub enum DeltaEncoding {
 
 /// Bytes the JSON of a sparse accessor and its second buffer view add over a dense one (an
 /// estimate, so that a sparse accessor must save more than it costs).
-const SPARSE_JSON_OVERHEAD: usize = 160;
+pub const SPARSE_JSON_OVERHEAD: usize = 160;
 
 /// Indices of the vertices whose delta is not exactly zero, increasing.
 pub fn changed_vertices(delta: &[Vec3]) -> Vec<u32> {

@@ -161,15 +161,45 @@ impl GltfBuilder {
         changed: &[u32],
         min_max: bool,
     ) -> json::Index<json::Accessor> {
-        assert!(
-            !changed.is_empty(),
-            "a sparse accessor lists at least one entry"
-        );
         let bounds = min_max.then(|| bounds_f32(data.iter().map(|v| v.to_array())));
         let (min, max) = match bounds {
             Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
             None => (None, None),
         };
+        let values = f32_bytes(changed.iter().flat_map(|&i| data[i as usize].to_array()));
+        self.sparse_accessor(
+            data.len(),
+            changed,
+            &values,
+            json::accessor::Type::Vec3,
+            json::accessor::ComponentType::F32,
+            false,
+            (min, max),
+        )
+    }
+
+    /// An accessor of `count` elements stored sparsely: no buffer view (zeros) plus `values`
+    /// (tightly packed elements of `type_`/`component`, one per entry of `changed`, strictly
+    /// increasing indices, at least one). The index and value views carry no target and no
+    /// stride, as the specification requires; indices are u16 when they fit.
+    ///
+    /// # Panics
+    /// When `changed` is empty (glTF requires at least one sparse entry).
+    #[allow(clippy::too_many_arguments, reason = "mirrors the accessor's fields")]
+    pub fn sparse_accessor(
+        &mut self,
+        count: usize,
+        changed: &[u32],
+        values: &[u8],
+        type_: json::accessor::Type,
+        component: json::accessor::ComponentType,
+        normalized: bool,
+        (min, max): (Option<json::Value>, Option<json::Value>),
+    ) -> json::Index<json::Accessor> {
+        assert!(
+            !changed.is_empty(),
+            "a sparse accessor lists at least one entry"
+        );
         let max_index = changed.iter().copied().max().unwrap_or(0);
         let (index_bytes, index_type) = if max_index <= u16::MAX as u32 {
             (
@@ -186,24 +216,19 @@ impl GltfBuilder {
             )
         };
         let indices_view = self.view(&index_bytes, None);
-        let values_view = self.view(
-            &f32_bytes(changed.iter().flat_map(|&i| data[i as usize].to_array())),
-            None,
-        );
+        let values_view = self.view(values, None);
         self.root.push(json::Accessor {
             buffer_view: None,
             byte_offset: None,
-            count: USize64::from(data.len()),
-            component_type: Valid(json::accessor::GenericComponentType(
-                json::accessor::ComponentType::F32,
-            )),
+            count: USize64::from(count),
+            component_type: Valid(json::accessor::GenericComponentType(component)),
             extensions: None,
             extras: Default::default(),
-            type_: Valid(json::accessor::Type::Vec3),
+            type_: Valid(type_),
             min,
             max,
             name: None,
-            normalized: false,
+            normalized,
             sparse: Some(json::accessor::sparse::Sparse {
                 count: USize64::from(changed.len()),
                 indices: json::accessor::sparse::Indices {
