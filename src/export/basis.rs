@@ -1375,12 +1375,17 @@ fn written_normals(
         let (max, mean) = exact();
         let accept =
             |e: (f64, f64)| e.0 <= max + CLAMP_MAX_DEGREES && e.1 <= mean + CLAMP_MEAN_DEGREES;
+        // At most as many normal targets as position targets, within `--max-targets`.
+        let cap = basis
+            .max_targets
+            .map_or(c.k, |m| m.saturating_sub(c.k + 1))
+            .min(c.k);
         let nb = normal_basis(
             frames,
             &fitted.played_base,
             keys,
             options.interpolation,
-            c.k,
+            cap,
             accept,
         )?;
         let v = frames.vertex_count();
