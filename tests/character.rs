@@ -215,3 +215,128 @@ fn every_joint_is_posed(out: &Path) {
         "Walk keys every joint fully: nothing held to check"
     );
 }
+
+/// The combined first animation carries every channel of the driving animation, its node
+/// transforms and its morph-target weights (the robot's face expressions), repeated for every
+/// written loop on one time axis: key for key the input's samples, read from both files with the
+/// gltf crate. A small patch on the robot's waist (no collider) over two loops of Sitting.
+#[test]
+fn every_channel_of_the_driving_animation_is_carried_per_loop() {
+    use gltf::animation::util::ReadOutputs;
+    let dir = tempfile::tempdir().unwrap();
+    let patch = dir.path().join("patch.obj");
+    let mut obj = String::new();
+    for y in [0.56, 0.50, 0.44] {
+        for x in [-0.05, 0.0, 0.05] {
+            obj += &format!("v {x} {y} 0.33\n");
+        }
+    }
+    for r in 0..2 {
+        for c in 0..2 {
+            let v = |i: usize, j: usize| 3 * i + j + 1;
+            obj += &format!("f {} {} {}\n", v(r, c), v(r + 1, c), v(r + 1, c + 1));
+            obj += &format!("f {} {} {}\n", v(r, c), v(r + 1, c + 1), v(r, c + 1));
+        }
+    }
+    std::fs::write(&patch, obj).unwrap();
+    let rig = common::mesh_path("humanoid/RobotExpressive.glb");
+    let out = dir.path().join("robot_patch.glb");
+    let cycles = 2;
+    let job = ClothJob {
+        input: Some(patch),
+        output: out.clone(),
+        rig: Some(rig.clone()),
+        animation: Some("Sitting".into()),
+        rig_scale: 0.4,
+        translate: Some(scenebake::glam::DVec3::new(0.0, 0.0, 0.107)),
+        cycles,
+        body_collider: Switch::Off,
+        pin: vec!["box:-1,0.559,-1,1,0.561,1.5".parse::<PinSpec>().unwrap()],
+        ..ClothJob::default()
+    };
+    bake_cloth(&job, &mut |_, _| {}).unwrap();
+
+    let (input, in_buffers, _) = gltf::import(&rig).unwrap();
+    let (doc, buffers, _) = gltf::import(&out).unwrap();
+    let driving = input
+        .animations()
+        .find(|a| a.name() == Some("Sitting"))
+        .unwrap();
+    let baked = doc.animations().next().unwrap();
+    // (times, values flattened per key) of a channel, by the gltf crate's reader.
+    fn read(
+        ch: &gltf::animation::Channel<'_>,
+        buffers: &[gltf::buffer::Data],
+    ) -> (Vec<f32>, Vec<Vec<f32>>) {
+        let r = ch.reader(|b| Some(&buffers[b.index()]));
+        let times: Vec<f32> = r.read_inputs().unwrap().collect();
+        let flat: Vec<f32> = match r.read_outputs().unwrap() {
+            ReadOutputs::Translations(it) => it.flatten().collect(),
+            ReadOutputs::Rotations(it) => it.into_f32().flatten().collect(),
+            ReadOutputs::Scales(it) => it.flatten().collect(),
+            ReadOutputs::MorphTargetWeights(it) => it.into_f32().collect(),
+        };
+        let per_key = flat.len() / times.len();
+        assert_eq!(per_key * times.len(), flat.len());
+        (times, flat.chunks(per_key).map(<[f32]>::to_vec).collect())
+    }
+    let ranges: Vec<(f32, f32)> = driving
+        .channels()
+        .map(|c| {
+            let (t, _) = read(&c, &in_buffers);
+            (t[0], *t.last().unwrap())
+        })
+        .collect();
+    let start = ranges.iter().map(|r| r.0).fold(f32::INFINITY, f32::min);
+    let period = ranges.iter().map(|r| r.1).fold(f32::NEG_INFINITY, f32::max) - start;
+    let mut weights = 0;
+    let mut count = 0;
+    for ch in driving.channels() {
+        let (node, property) = (ch.target().node().index(), ch.target().property());
+        let name = format!("node #{node} {property:?}");
+        let found: Vec<_> = baked
+            .channels()
+            .filter(|c| c.target().node().index() == node && c.target().property() == property)
+            .collect();
+        assert_eq!(
+            found.len(),
+            1,
+            "{name}: {} channels in the bake",
+            found.len()
+        );
+        assert_eq!(
+            found[0].sampler().interpolation(),
+            ch.sampler().interpolation(),
+            "{name}"
+        );
+        let (times, values) = read(&ch, &in_buffers);
+        let (got_times, got_values) = read(&found[0], &buffers);
+        // Loop c's keys at t + c·period; a loop's first key is the previous loop's last when
+        // the channel spans the whole period, and is then written once.
+        let mut want: Vec<(f32, &Vec<f32>)> = Vec::new();
+        for c in 0..cycles {
+            for (t, v) in times.iter().zip(&values) {
+                let t = t + c as f32 * period;
+                if want.last().is_some_and(|w| t <= w.0 + 1e-6) {
+                    continue;
+                }
+                want.push((t, v));
+            }
+        }
+        assert_eq!(got_times.len(), want.len(), "{name}: key count");
+        for (k, ((t, v), (wt, wv))) in got_times.iter().zip(&got_values).zip(&want).enumerate() {
+            assert!(
+                (t - wt).abs() < 1e-5,
+                "{name} key {k}: time {t}, expected {wt}"
+            );
+            assert_eq!(v, *wv, "{name} key {k} at {t} s");
+        }
+        count += 1;
+        if property == gltf::animation::Property::MorphTargetWeights {
+            weights += 1;
+        }
+    }
+    // Sitting keys the face's three morph meshes.
+    assert_eq!(weights, 3, "weights channels in Sitting");
+    assert!(count > weights);
+}
