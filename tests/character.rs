@@ -219,10 +219,55 @@ fn every_joint_is_posed(out: &Path) {
     );
 }
 
+/// A copy of RobotExpressive.glb in `dir` whose `animation` keys its face weights with varying
+/// values (the file's own are all zero): weight j of key k = ((7k + 3j) mod 11)/10.
+fn robot_with_expressions(dir: &Path, animation: &str) -> std::path::PathBuf {
+    let path = common::mesh_path("humanoid/RobotExpressive.glb");
+    let bytes = std::fs::read(&path).unwrap();
+    let glb = gltf::Glb::from_slice(&bytes).unwrap();
+    let doc = gltf::Gltf::from_slice(&bytes).unwrap().document;
+    let mut bin = glb.bin.clone().unwrap().into_owned();
+    let anim = doc
+        .animations()
+        .find(|a| a.name() == Some(animation))
+        .unwrap();
+    let mut patched = 0;
+    for ch in anim.channels() {
+        if ch.target().property() != gltf::animation::Property::MorphTargetWeights {
+            continue;
+        }
+        let out = ch.sampler().output();
+        assert_eq!(out.data_type(), gltf::accessor::DataType::F32);
+        let view = out.view().unwrap();
+        assert!(view.stride().is_none_or(|s| s == 4));
+        let start = view.offset() + out.offset();
+        let keys = ch.sampler().input().count();
+        let targets = out.count() / keys;
+        for k in 0..keys {
+            for j in 0..targets {
+                let v = ((7 * k + 3 * j) % 11) as f32 / 10.0;
+                let at = start + 4 * (k * targets + j);
+                bin[at..at + 4].copy_from_slice(&v.to_le_bytes());
+            }
+        }
+        patched += 1;
+    }
+    assert!(patched > 0, "{animation} keys no weights");
+    let out = dir.join("robot_expressive.glb");
+    let glb = gltf::Glb {
+        header: glb.header,
+        json: glb.json.clone(),
+        bin: Some(std::borrow::Cow::Owned(bin)),
+    };
+    std::fs::write(&out, glb.to_vec().unwrap()).unwrap();
+    out
+}
+
 /// The combined first animation carries every channel of the driving animation, its node
 /// transforms and its morph-target weights (the robot's face expressions), repeated for every
 /// written loop on one time axis: key for key the input's samples, read from both files with the
-/// gltf crate. A small patch on the robot's waist (no collider) over two loops of Sitting.
+/// gltf crate. A small patch on the robot's waist (no collider) over two loops of Sitting, whose
+/// face weights (all zero in the file) are given varying values first.
 #[test]
 fn every_channel_of_the_driving_animation_is_carried_per_loop() {
     use gltf::animation::util::ReadOutputs;
@@ -242,7 +287,7 @@ fn every_channel_of_the_driving_animation_is_carried_per_loop() {
         }
     }
     std::fs::write(&patch, obj).unwrap();
-    let rig = common::mesh_path("humanoid/RobotExpressive.glb");
+    let rig = robot_with_expressions(dir.path(), "Sitting");
     let out = dir.path().join("robot_patch.glb");
     let cycles = 2;
     let job = ClothJob {
@@ -337,6 +382,10 @@ fn every_channel_of_the_driving_animation_is_carried_per_loop() {
         count += 1;
         if property == gltf::animation::Property::MorphTargetWeights {
             weights += 1;
+            assert!(
+                values.iter().flatten().any(|&w| w > 0.5),
+                "{name}: no expression"
+            );
         }
     }
     // Sitting keys the face's three morph meshes.
