@@ -16,7 +16,7 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::cloth::collide::{Collider, Colliders, MeshCollider, DEFAULT_THICKNESS_FRACTION};
-use crate::cloth::material::{fabric_model_terms, DEFAULT_MATERIAL};
+use crate::cloth::material::{fabric_model_terms, DEFAULT_JAM_STRAIN, DEFAULT_MATERIAL};
 use crate::cloth::model::{masses_from_area, masses_from_volume};
 use crate::cloth::pins::pinned_flags;
 use crate::cloth::preset::{self, lab_cloth};
@@ -350,7 +350,8 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
                 Param::JamStrain,
                 format!(
                     "{v}: must be between 0 and 1, exclusive (a compression strain, a fraction \
-                     of an edge's rest length: 0.08 is 8 %)"
+                     of an edge's rest length: the default {DEFAULT_JAM_STRAIN} is {} %)",
+                    DEFAULT_JAM_STRAIN * 100.0
                 ),
             ));
         }
