@@ -68,6 +68,8 @@ params! {
     Bend => "bend",
     /// A fabric's compression stiffness.
     Compression => "compression",
+    /// A fabric's jamming strain.
+    JamStrain => "jam_strain",
     /// The labs' spring stiffness.
     Stiffness => "stiffness",
     /// The labs' bending-spring stiffness.

@@ -34,7 +34,7 @@ fn model(
         mesh,
         SpringSet {
             springs,
-            skipped_zero_length: 0,
+            ..SpringSet::default()
         },
         mass,
         pinned,

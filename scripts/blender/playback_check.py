@@ -129,11 +129,15 @@ def check(path, objects, fps_import, frames=5, tolerance=2e-3, max_angle=3.0, mi
         n = g.doc["nodes"][node]
         mesh = g.doc["meshes"][n["mesh"]]
         has_targets = any(p.get("targets") for p in mesh["primitives"])
-        # Shading is checked on shapes the file plays (cloth bakes); a rig's own morph targets
-        # that the first animation leaves alone (a face's expressions) are the input's business.
-        morph = has_targets and any(
-            ch["target"].get("node") == node and ch["target"].get("path") == "weights"
-            for a in anims[:1] for ch in a["channels"])
+        # Shading is checked on shapes the bake plays (cloth bakes); a rig's own morph targets
+        # (a face's expressions), which the first animation leaves alone or repeats from the
+        # character's animations (`cloth --rig` carries the driving animation's weights), are
+        # the input's business: their positions are compared, their shading is not.
+        def keys_weights(a):
+            return any(ch["target"].get("node") == node and ch["target"].get("path") == "weights"
+                       for ch in a["channels"])
+        morph = (has_targets and any(keys_weights(a) for a in anims[:1])
+                 and not any(keys_weights(a) for a in anims[1:]))
         animated = has_targets or "skin" in n or any(
             ch["target"].get("node") == node for a in anims[:1] for ch in a["channels"])
         if not animated and not morph:

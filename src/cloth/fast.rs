@@ -25,7 +25,7 @@ use sprs::CsMat;
 use super::collide::contact::{self, Hold};
 use super::collide::{Collider, Colliders, SurfacePoint};
 use super::factor::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
-use super::system::{spring_response, FreeBends, ReducedSystem, JAM_STRAIN, PINNED};
+use super::system::{spring_response, FreeBends, ReducedSystem, PINNED};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
 use crate::param::Param;
@@ -109,7 +109,8 @@ pub struct FastSolver {
     /// kc/k per free spring: the local step's pull scaled for a compressed spring, so that the
     /// residual is the exact −h²∇g whatever the compression stiffness (1 for the labs' springs).
     soft: Vec<f64>,
-    /// h²·k·(1 − J)·l per free spring that jams (kc < k, J = [`JAM_STRAIN`]), else 0, kg·m: a
+    /// h²·k·(1 − J)·l per free spring that jams (kc < k, J = [`ReducedSystem::jam_strain`]), else
+    /// 0, kg·m: a
     /// spring shorter than (1 − J)·l adds h²·k·((1 − J)·l/|d| − 1)·d to its push.
     jam_hkl: Vec<f64>,
     /// h²·k per anchor, kg.
@@ -196,7 +197,7 @@ impl FastSolver {
             jam_hkl: (0..sp.k.len())
                 .map(|i| {
                     if sp.kc[i] < sp.k[i] {
-                        h2 * sp.k[i] * (1.0 - JAM_STRAIN) * sp.rest[i]
+                        h2 * sp.k[i] * (1.0 - sys.jam_strain) * sp.rest[i]
                     } else {
                         0.0
                     }
@@ -343,7 +344,8 @@ impl FastSolver {
             let d = x[a].xyz() - an.at[i];
             let len = d.length();
             if len > 0.0 {
-                let (f, _) = spring_response(len, an.rest[i], an.k[i], an.kc[i]);
+                let (f, _) =
+                    spring_response(len, an.rest[i], an.k[i], an.kc[i], self.sys.jam_strain);
                 r[a] -= Lanes4::from_vec3(d * (h2 * f / len));
             }
         }

@@ -18,6 +18,9 @@ pub struct ClothModel {
     pub springs: Vec<Spring>,
     /// Quadratic bending stencils (material models; the labs' models bend with springs).
     pub bending: Vec<BendStencil>,
+    /// Compression strain past which springs softer in compression than in tension jam (a
+    /// fraction of the rest length, in (0, 1); [`SpringSet::jam_strain`]).
+    pub jam_strain: f64,
     /// Mass of each particle in kg.
     pub mass: Vec<f64>,
     /// Whether each particle is held at its initial position.
@@ -58,6 +61,12 @@ impl ClothModel {
         }) {
             return Err(bad(format!("invalid spring {s:?}")));
         }
+        if !(springs.jam_strain > 0.0 && springs.jam_strain < 1.0) {
+            return Err(bad(format!(
+                "jamming strain {} (must be between 0 and 1, a fraction of the rest length)",
+                springs.jam_strain
+            )));
+        }
         if pinned.iter().all(|&p| p) {
             return Err(bad("every particle is pinned: nothing would move".into()));
         }
@@ -69,6 +78,7 @@ impl ClothModel {
             ));
         }
         Ok(ClothModel {
+            jam_strain: springs.jam_strain,
             springs: springs.springs,
             bending: Vec::new(),
             mass,

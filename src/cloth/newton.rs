@@ -452,9 +452,10 @@ impl NewtonSolver {
             values[d[2] as usize + 2] = wm;
         }
         let sp = &self.sys.springs;
+        let jam = self.sys.jam_strain;
         for (s, off) in self.off.iter().enumerate() {
             let (a, b) = (sp.a[s] as usize, sp.b[s] as usize);
-            let (f, he) = spring_terms(x[a] - x[b], sp.rest[s], sp.k[s], sp.kc[s]);
+            let (f, he) = spring_terms(x[a] - x[b], sp.rest[s], sp.k[s], sp.kc[s], jam);
             grad[a] += f;
             grad[b] -= f;
             add_diag(values, &self.diag[a], &he);
@@ -470,7 +471,7 @@ impl NewtonSolver {
         let an = &self.sys.anchors;
         for i in 0..an.a.len() {
             let a = an.a[i] as usize;
-            let (f, he) = spring_terms(x[a] - an.at[i], an.rest[i], an.k[i], an.kc[i]);
+            let (f, he) = spring_terms(x[a] - an.at[i], an.rest[i], an.k[i], an.kc[i], jam);
             grad[a] += f;
             add_diag(values, &self.diag[a], &he);
         }
@@ -555,10 +556,10 @@ impl NewtonSolver {
 /// and f/|r| across it, the latter clamped at zero for a compressed spring (whose exact
 /// transverse term is negative), so every block is positive semi-definite.
 #[inline(always)]
-fn spring_terms(r: DVec3, rest: f64, k: f64, kc: f64) -> (DVec3, [[f64; 3]; 3]) {
+fn spring_terms(r: DVec3, rest: f64, k: f64, kc: f64, jam: f64) -> (DVec3, [[f64; 3]; 3]) {
     let len = r.length();
     if len > 0.0 {
-        let (f, along) = super::system::spring_response(len, rest, k, kc);
+        let (f, along) = super::system::spring_response(len, rest, k, kc, jam);
         let u = r / len;
         let t = (f / len).max(0.0);
         let p = along - t;

@@ -233,7 +233,13 @@ fn report_terms(s: &NewtonSolver, x: &[DVec3], fl: &Flags) {
     let sp = &sys.springs;
     for k in 0..sp.a.len() {
         let (a, b) = (sp.a[k] as usize, sp.b[k] as usize);
-        let f = crate::cloth::system::spring_gradient(x[a] - x[b], sp.rest[k], sp.k[k], sp.kc[k]);
+        let f = crate::cloth::system::spring_gradient(
+            x[a] - x[b],
+            sp.rest[k],
+            sp.k[k],
+            sp.kc[k],
+            sys.jam_strain,
+        );
         t[a][1] += f;
         t[b][1] -= f;
     }

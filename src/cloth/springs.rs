@@ -40,12 +40,27 @@ pub struct Spring {
 }
 
 /// Springs built from a mesh, with the edges that had to be skipped.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct SpringSet {
     /// The springs, in a deterministic order.
     pub springs: Vec<Spring>,
     /// Pairs skipped because their rest length is zero (coincident particles).
     pub skipped_zero_length: usize,
+    /// Compression strain (a fraction of the rest length, in (0, 1)) past which a spring softer
+    /// in compression than in tension jams: the tension stiffness adds back (see
+    /// [`super::system::spring_response`]). Symmetric springs never jam. Default
+    /// [`super::material::DEFAULT_JAM_STRAIN`]; a fabric's comes from its material.
+    pub jam_strain: f64,
+}
+
+impl Default for SpringSet {
+    fn default() -> Self {
+        SpringSet {
+            springs: Vec::new(),
+            skipped_zero_length: 0,
+            jam_strain: super::material::DEFAULT_JAM_STRAIN,
+        }
+    }
 }
 
 impl SpringSet {

@@ -128,6 +128,9 @@ pub struct ReducedSystem {
     pub anchors: Anchors,
     /// Quadratic bending stencils.
     pub bends: FreeBends,
+    /// Compression strain past which a spring softer in compression jams (a fraction of its rest
+    /// length; [`ClothModel::jam_strain`]).
+    pub jam_strain: f64,
 }
 
 impl ReducedSystem {
@@ -220,6 +223,7 @@ impl ReducedSystem {
             springs,
             anchors,
             bends,
+            jam_strain: model.jam_strain,
         })
     }
 
@@ -293,14 +297,14 @@ impl ReducedSystem {
         let spring: f64 = (0..s.a.len())
             .map(|i| {
                 let len = x[s.a[i] as usize].distance(x[s.b[i] as usize]);
-                spring_energy(len, s.rest[i], s.k[i], s.kc[i])
+                spring_energy(len, s.rest[i], s.k[i], s.kc[i], self.jam_strain)
             })
             .sum();
         let an = &self.anchors;
         let anchor: f64 = (0..an.a.len())
             .map(|i| {
                 let len = x[an.a[i] as usize].distance(an.at[i]);
-                spring_energy(len, an.rest[i], an.k[i], an.kc[i])
+                spring_energy(len, an.rest[i], an.k[i], an.kc[i], self.jam_strain)
             })
             .sum();
         let b = &self.bends;
@@ -320,14 +324,20 @@ impl ReducedSystem {
         let s = &self.springs;
         for i in 0..s.a.len() {
             let (a, b) = (s.a[i] as usize, s.b[i] as usize);
-            let f = spring_gradient(x[a] - x[b], s.rest[i], s.k[i], s.kc[i]);
+            let f = spring_gradient(x[a] - x[b], s.rest[i], s.k[i], s.kc[i], self.jam_strain);
             grad[a] += f;
             grad[b] -= f;
         }
         let an = &self.anchors;
         for i in 0..an.a.len() {
             let a = an.a[i] as usize;
-            grad[a] += spring_gradient(x[a] - an.at[i], an.rest[i], an.k[i], an.kc[i]);
+            grad[a] += spring_gradient(
+                x[a] - an.at[i],
+                an.rest[i],
+                an.k[i],
+                an.kc[i],
+                self.jam_strain,
+            );
         }
         self.add_bending_gradient(x, grad);
     }
@@ -354,21 +364,16 @@ impl ReducedSystem {
     }
 }
 
-/// Compression strain at which a spring that is softer in compression than in tension (a
-/// fabric's, see [`super::material`]) jams: beyond it the tension stiffness adds back, as yarns
-/// pressed together do. Springs with equal stiffnesses (the labs') never jam.
-pub const JAM_STRAIN: f64 = 0.1;
-
 /// A spring's tension f (N, positive when stretched) and its derivative df/d|r| (N/m) at length
 /// `len`: f = k·e for an extension e = len − rest ≥ 0, and kc·e in compression, plus k·(e + J·rest)
-/// past the jamming strain J = [`JAM_STRAIN`] when kc < k.
+/// past the jamming strain J = `jam` (a fraction of the rest length) when kc < k.
 #[inline(always)]
-pub fn spring_response(len: f64, rest: f64, k: f64, kc: f64) -> (f64, f64) {
+pub fn spring_response(len: f64, rest: f64, k: f64, kc: f64, jam: f64) -> (f64, f64) {
     let e = len - rest;
     if e >= 0.0 {
         (k * e, k)
-    } else if kc < k && e < -JAM_STRAIN * rest {
-        (kc * e + k * (e + JAM_STRAIN * rest), kc + k)
+    } else if kc < k && e < -jam * rest {
+        (kc * e + k * (e + jam * rest), kc + k)
     } else {
         (kc * e, kc)
     }
@@ -376,14 +381,14 @@ pub fn spring_response(len: f64, rest: f64, k: f64, kc: f64) -> (f64, f64) {
 
 /// Energy of a spring of length `len` (J): the integral of [`spring_response`]'s tension.
 #[inline]
-pub fn spring_energy(len: f64, rest: f64, k: f64, kc: f64) -> f64 {
+pub fn spring_energy(len: f64, rest: f64, k: f64, kc: f64, jam: f64) -> f64 {
     let e = len - rest;
     if e >= 0.0 {
         0.5 * k * e * e
     } else {
-        let jam = e + JAM_STRAIN * rest;
-        let jammed = if kc < k && jam < 0.0 {
-            0.5 * k * jam * jam
+        let jammed = e + jam * rest;
+        let jammed = if kc < k && jammed < 0.0 {
+            0.5 * k * jammed * jammed
         } else {
             0.0
         };
@@ -394,10 +399,10 @@ pub fn spring_energy(len: f64, rest: f64, k: f64, kc: f64) -> f64 {
 /// ∂/∂xa of a spring's energy with r = xa − xb: f·r/|r| with f from [`spring_response`] (zero
 /// for coincident ends).
 #[inline]
-pub fn spring_gradient(r: DVec3, rest: f64, k: f64, kc: f64) -> DVec3 {
+pub fn spring_gradient(r: DVec3, rest: f64, k: f64, kc: f64, jam: f64) -> DVec3 {
     let len = r.length();
     if len > 0.0 {
-        r * (spring_response(len, rest, k, kc).0 / len)
+        r * (spring_response(len, rest, k, kc, jam).0 / len)
     } else {
         DVec3::ZERO
     }

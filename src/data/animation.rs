@@ -130,6 +130,23 @@ impl Track {
     }
 }
 
+/// One animated morph-target `weights` property of one node: it moves no node, but a copy of
+/// the animation carries it (a character's face expressions).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WeightsTrack {
+    /// Node index in the document.
+    pub node: usize,
+    /// The interpolation.
+    pub interpolation: Interpolation,
+    /// Key times, seconds, strictly increasing.
+    pub times: Vec<f64>,
+    /// The weights, `targets` per key (for [`Interpolation::CubicSpline`] three groups of
+    /// `targets` per key: in-tangents, values, out-tangents), as the glTF sampler stores them.
+    pub values: Vec<f32>,
+    /// Morph targets per key (the node's mesh's target count).
+    pub targets: usize,
+}
+
 /// A glTF animation: tracks on node properties.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Clip {
@@ -137,25 +154,31 @@ pub struct Clip {
     pub name: String,
     /// Its index among the document's animations.
     pub index: usize,
-    /// The tracks.
+    /// The tracks on node transforms.
     pub tracks: Vec<Track>,
+    /// The tracks on morph-target weights.
+    pub weights: Vec<WeightsTrack>,
 }
 
 impl Clip {
-    /// Earliest key time over all tracks, seconds.
+    /// Every track's key times (transforms and weights).
+    fn all_times(&self) -> impl Iterator<Item = &[f64]> {
+        let tracks = self.tracks.iter().map(|t| &t.times[..]);
+        tracks.chain(self.weights.iter().map(|t| &t.times[..]))
+    }
+
+    /// Earliest key time over all tracks (weights too, as glTF times an animation), seconds.
     pub fn start(&self) -> f64 {
-        self.tracks
-            .iter()
-            .filter_map(|t| t.times.first().copied())
+        self.all_times()
+            .filter_map(|t| t.first().copied())
             .fold(f64::INFINITY, f64::min)
             .min(f64::MAX)
     }
 
-    /// Latest key time over all tracks, seconds.
+    /// Latest key time over all tracks (weights too), seconds.
     pub fn end(&self) -> f64 {
-        self.tracks
-            .iter()
-            .filter_map(|t| t.times.last().copied())
+        self.all_times()
+            .filter_map(|t| t.last().copied())
             .fold(f64::NEG_INFINITY, f64::max)
             .max(self.start())
     }
@@ -490,6 +513,7 @@ mod tests {
                     DVec4::new(1.0, 0.0, 3.0, 0.0),
                 ],
             }],
+            weights: Vec::new(),
         };
         assert_eq!((clip.start(), clip.end()), (0.0, 1.0));
         let moved = mesh.deform(&sk.world_at(Some(&clip), 0.5));

@@ -4,7 +4,8 @@
 //! IK bake on a rig ([`super::skin::write_rig_gltf`]). The garment is added as a morph-animated
 //! mesh on its own scene-root node, scaled from metres back to the document's units. A new first
 //! animation, named after the bake, holds the driving animation's keys (repeated for every
-//! written loop) and the garment's weights on the same time axis, so a viewer that plays the
+//! written loop; its morph-target weights too, such as a face's expressions) and the garment's
+//! weights on the same time axis, so a viewer that plays the
 //! first animation (Blender's importer makes it active on every object, three.js users take
 //! `animations[0]`) plays the character and the garment together. The fps and frame range go into
 //! `asset.extras` ([`super::playback`]).
@@ -118,8 +119,36 @@ pub fn encode_character_gltf(
     stamp_and_encode(b, path, frames, options, stats)
 }
 
-/// The clip's tracks as a new animation covering `cycles` loops: each loop's keys shifted by
-/// the clip's duration (a loop's first key dropped where it repeats the previous loop's last).
+/// The key times of a track over `cycles` loops of `period` seconds, and for each the index of
+/// the clip's key it repeats: each loop's keys shifted by `period`, a loop's first key dropped
+/// where it repeats the previous loop's last.
+fn looped_keys(times: &[f64], period: f64, cycles: usize) -> (Vec<f32>, Vec<usize>) {
+    let mut out: Vec<f64> = Vec::new();
+    let mut keys = Vec::new();
+    for c in 0..cycles.max(1) {
+        let shift = c as f64 * period;
+        for (k, &t) in times.iter().enumerate() {
+            let t = t + shift;
+            if out.last().is_some_and(|&last| t <= last) {
+                continue;
+            }
+            out.push(t);
+            keys.push(k);
+        }
+    }
+    (out.iter().map(|&t| t as f32).collect(), keys)
+}
+
+fn json_interpolation(i: Interpolation) -> json::animation::Interpolation {
+    match i {
+        Interpolation::Step => json::animation::Interpolation::Step,
+        Interpolation::Linear => json::animation::Interpolation::Linear,
+        Interpolation::CubicSpline => json::animation::Interpolation::CubicSpline,
+    }
+}
+
+/// The clip's tracks as a new animation covering `cycles` loops (see [`looped_keys`]): its node
+/// transforms and its morph-target weights (a character's face), on one time axis.
 fn driving_animation(b: &mut GltfBuilder, character: &CharacterOptions<'_>) -> json::Animation {
     let clip = character.clip;
     let period = clip.duration();
@@ -131,21 +160,12 @@ fn driving_animation(b: &mut GltfBuilder, character: &CharacterOptions<'_>) -> j
         } else {
             1
         };
-        let mut times = Vec::new();
-        let mut values = Vec::new();
-        for c in 0..character.cycles.max(1) {
-            let shift = c as f64 * period;
-            for (k, &t) in track.times.iter().enumerate() {
-                let t = t + shift;
-                if times.last().is_some_and(|&last: &f64| t <= last) {
-                    continue;
-                }
-                times.push(t);
-                values.extend_from_slice(&track.values[k * per_key..(k + 1) * per_key]);
-            }
-        }
-        let times32: Vec<f32> = times.iter().map(|&t| t as f32).collect();
-        let input = b.scalars(&times32, true);
+        let (times, keys) = looped_keys(&track.times, period, character.cycles);
+        let values: Vec<_> = keys
+            .iter()
+            .flat_map(|&k| &track.values[k * per_key..(k + 1) * per_key])
+            .collect();
+        let input = b.scalars(&times, true);
         let output = match track.property {
             Property::Rotation => {
                 let v: Vec<[f32; 4]> = values.iter().map(|v| v.as_vec4().to_array()).collect();
@@ -155,11 +175,6 @@ fn driving_animation(b: &mut GltfBuilder, character: &CharacterOptions<'_>) -> j
                 let v: Vec<glam::Vec3> = values.iter().map(|v| v.truncate().as_vec3()).collect();
                 b.vec3(&v, None, false)
             }
-        };
-        let interpolation = match track.interpolation {
-            Interpolation::Step => json::animation::Interpolation::Step,
-            Interpolation::Linear => json::animation::Interpolation::Linear,
-            Interpolation::CubicSpline => json::animation::Interpolation::CubicSpline,
         };
         let property = match track.property {
             Property::Translation => json::animation::Property::Translation,
@@ -171,7 +186,36 @@ fn driving_animation(b: &mut GltfBuilder, character: &CharacterOptions<'_>) -> j
             json::Index::new(track.node as u32),
             property,
         ));
-        samplers.push(sampler(input, output, interpolation));
+        samplers.push(sampler(
+            input,
+            output,
+            json_interpolation(track.interpolation),
+        ));
+    }
+    for track in &clip.weights {
+        let per_key = track.targets
+            * if track.interpolation == Interpolation::CubicSpline {
+                3
+            } else {
+                1
+            };
+        let (times, keys) = looped_keys(&track.times, period, character.cycles);
+        let values: Vec<f32> = keys
+            .iter()
+            .flat_map(|&k| track.values[k * per_key..(k + 1) * per_key].iter().copied())
+            .collect();
+        let input = b.scalars(&times, true);
+        let output = b.scalars(&values, false);
+        channels.push(channel(
+            samplers.len(),
+            json::Index::new(track.node as u32),
+            json::animation::Property::MorphTargetWeights,
+        ));
+        samplers.push(sampler(
+            input,
+            output,
+            json_interpolation(track.interpolation),
+        ));
     }
     json::Animation {
         name: None,

@@ -11,7 +11,9 @@ use glam::{DAffine3, DMat4, DQuat, DVec3, DVec4};
 use gltf_json as json;
 use json::validation::USize64;
 
-use crate::data::animation::{Clip, Interpolation, Property, Skeleton, SkinnedMesh, Track, Trs};
+use crate::data::animation::{
+    Clip, Interpolation, Property, Skeleton, SkinnedMesh, Track, Trs, WeightsTrack,
+};
 use crate::data::chain::{Chain, Joint};
 use crate::error::{Error, Result};
 use crate::param::Param;
@@ -373,6 +375,7 @@ impl RigDocument {
         let bad =
             |m: String| Error::invalid(&self.path, format!("animation `{}`: {m}", names[index]));
         let mut tracks = Vec::new();
+        let mut weights = Vec::new();
         for (c, ch) in anim.channels().enumerate() {
             let reader = ch.reader(|_| Some(&self.bin[..]));
             let times: Vec<f64> = reader
@@ -388,20 +391,6 @@ impl RigDocument {
                     v.get(3).copied().unwrap_or(0.0).into(),
                 )
             };
-            let (property, values): (Property, Vec<DVec4>) = match reader.read_outputs() {
-                Some(gltf::animation::util::ReadOutputs::Translations(it)) => {
-                    (Property::Translation, it.map(|v| f(&v)).collect())
-                }
-                Some(gltf::animation::util::ReadOutputs::Scales(it)) => {
-                    (Property::Scale, it.map(|v| f(&v)).collect())
-                }
-                Some(gltf::animation::util::ReadOutputs::Rotations(it)) => {
-                    (Property::Rotation, it.into_f32().map(|v| f(&v)).collect())
-                }
-                // Morph weights do not move nodes.
-                Some(gltf::animation::util::ReadOutputs::MorphTargetWeights(_)) => continue,
-                None => return Err(bad(format!("channel {c} has no values"))),
-            };
             let interpolation = match ch.sampler().interpolation() {
                 gltf::animation::Interpolation::Step => Interpolation::Step,
                 gltf::animation::Interpolation::Linear => Interpolation::Linear,
@@ -412,11 +401,45 @@ impl RigDocument {
             } else {
                 1
             };
-            if times.is_empty()
-                || values.len() != per_key * times.len()
+            let bad_times = times.is_empty()
                 || times.windows(2).any(|w| w[1] <= w[0])
-                || times.iter().any(|t| !t.is_finite())
-            {
+                || times.iter().any(|t| !t.is_finite());
+            let (property, values): (Property, Vec<DVec4>) = match reader.read_outputs() {
+                Some(gltf::animation::util::ReadOutputs::Translations(it)) => {
+                    (Property::Translation, it.map(|v| f(&v)).collect())
+                }
+                Some(gltf::animation::util::ReadOutputs::Scales(it)) => {
+                    (Property::Scale, it.map(|v| f(&v)).collect())
+                }
+                Some(gltf::animation::util::ReadOutputs::Rotations(it)) => {
+                    (Property::Rotation, it.into_f32().map(|v| f(&v)).collect())
+                }
+                // Morph weights move no node; they are kept for writers that copy the clip.
+                Some(gltf::animation::util::ReadOutputs::MorphTargetWeights(it)) => {
+                    let values: Vec<f32> = it.into_f32().collect();
+                    let keys = per_key * times.len();
+                    let targets = values.len().checked_div(keys).unwrap_or(0);
+                    if bad_times || targets == 0 || values.len() != targets * keys {
+                        return Err(bad(format!(
+                            "weights channel {c} has {} key times (strictly increasing \
+                             expected) and {} values (a whole number of weights per key \
+                             expected)",
+                            times.len(),
+                            values.len()
+                        )));
+                    }
+                    weights.push(WeightsTrack {
+                        node: ch.target().node().index(),
+                        interpolation,
+                        times,
+                        values,
+                        targets,
+                    });
+                    continue;
+                }
+                None => return Err(bad(format!("channel {c} has no values"))),
+            };
+            if bad_times || values.len() != per_key * times.len() {
                 return Err(bad(format!(
                     "channel {c} has {} key times (strictly increasing expected) and {} values",
                     times.len(),
@@ -435,6 +458,7 @@ impl RigDocument {
             name: names[index].clone(),
             index,
             tracks,
+            weights,
         })
     }
 

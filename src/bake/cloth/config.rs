@@ -176,6 +176,11 @@ pub struct ClothJob {
     /// The fabric's compression stiffness as a fraction of its stretch stiffness (0..1).
     #[cfg_attr(feature = "cli", arg(long, value_name = "FRACTION"))]
     pub compression: Option<f64>,
+    /// The fabric's jamming strain: past this compression (a fraction of an edge's rest length,
+    /// between 0 and 1) an edge resists with its full stretch stiffness again [default: 0.09].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "STRAIN"))]
+    #[serde(alias = "jam-strain")]
+    pub jam_strain: Option<f64>,
     /// Every spring's stiffness in N/m, symmetric in tension and compression: the labs' model
     /// instead of a material [lab-cloth 100; .tet 1000].
     #[cfg_attr(feature = "cli", arg(long, value_name = "K"))]
@@ -413,6 +418,7 @@ impl Default for ClothJob {
             stretch: None,
             bend: None,
             compression: None,
+            jam_strain: None,
             stiffness: None,
             bend_stiffness: None,
             damping: None,

@@ -16,7 +16,7 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::cloth::collide::{Collider, Colliders, MeshCollider, DEFAULT_THICKNESS_FRACTION};
-use crate::cloth::material::{fabric_model_terms, DEFAULT_MATERIAL};
+use crate::cloth::material::{fabric_model_terms, DEFAULT_JAM_STRAIN, DEFAULT_MATERIAL};
 use crate::cloth::model::{masses_from_area, masses_from_volume};
 use crate::cloth::pins::pinned_flags;
 use crate::cloth::preset::{self, lab_cloth};
@@ -110,6 +110,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         (Param::Stretch, job.stretch.is_some()),
         (Param::Bend, job.bend.is_some()),
         (Param::Compression, job.compression.is_some()),
+        (Param::JamStrain, job.jam_strain.is_some()),
     ]
     .into_iter()
     .find_map(|(name, given)| given.then_some(name));
@@ -323,7 +324,8 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
     })
 }
 
-/// `--material` with the `--stretch`, `--bend`, `--compression` and `--density` overrides.
+/// `--material` with the `--stretch`, `--bend`, `--compression`, `--jam-strain` and `--density`
+/// overrides.
 fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
     let preset = job.material.unwrap_or(DEFAULT_MATERIAL);
     let mut m = preset.material();
@@ -341,6 +343,19 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
             ));
         }
         m.compression = v;
+    }
+    if let Some(v) = job.jam_strain {
+        if !(v > 0.0 && v < 1.0) {
+            return Err(Error::param_value(
+                Param::JamStrain,
+                format!(
+                    "{v}: must be between 0 and 1, exclusive (a compression strain, a fraction \
+                     of an edge's rest length: the default {DEFAULT_JAM_STRAIN} is {} %)",
+                    DEFAULT_JAM_STRAIN * 100.0
+                ),
+            ));
+        }
+        m.jam_strain = v;
     }
     if let Some(d) = job.density {
         m.density = positive(Param::Density, d)?;
