@@ -31,8 +31,7 @@
 //! base shape is far from any baked frame (it sits at the lowest coefficients), so any other base
 //! NORMAL (such as the best fit to the baked normals) shades every frame off by its offset, and
 //! normals equal to the face normals import flat. glTF morphs normals with the same weights as
-//! positions, so a separate normal basis would need more targets. Instead each target's NORMAL
-//! delta `m_k` is fitted by least squares given the position weights: per vertex,
+//! positions. In the *shared* layout each target's NORMAL delta `m_k` is fitted by least squares given the position weights: per vertex,
 //! `min Σ_f |n_b + o + Σ_k w_fk m_k - n_f|²`, where `o` is the NORMAL of one more target,
 //! `normal_offset` (zero POSITION: a sparse accessor listing one zero; weight 1 in every frame): the offset from the base shape's
 //! normals to the best constant term, which Blender ignores (it drops NORMAL deltas) and engines
@@ -51,11 +50,12 @@
 //! sparse accessor; three.js would use the base normals as the deltas of a target without
 //! one), and J *normal targets* (zero POSITION; NORMAL the first J directions of a thin SVD of
 //! the residual normals `n_f − n_b − o`, each scaled to a largest component of 1 and stored as
-//! int8, else with the leading third int16, else int16, sparse where smaller; weights of their
+//! int8, or with the leading third int16, or int16, sparse where smaller; weights of their
 //! own, refitted by least squares per frame, any sign: they move no position, so Blender's
 //! slider range does not matter) carry them, after `normal_offset`. J is the smallest whose
 //! measured normal error is within [`CLAMP_MAX_DEGREES`] / [`CLAMP_MEAN_DEGREES`] of the shared
-//! f32 fit's (with the offset). Of the three layouts (shared deltas without and with the
+//! f32 fit's (with the offset), at the coarsest of those precisions that meets it, and at most
+//! K, within `--max-targets` (64 targets in all without it). Of the three layouts (shared deltas without and with the
 //! offset, normal targets), the file written is the smallest whose normal error is within
 //! those margins of the shared layout with the offset (that one when none is), within
 //! `--max-targets` (which counts every target). The report's `normal_targets` gives J.
@@ -203,7 +203,8 @@ pub struct Quantization {
     pub normals: String,
     /// Targets whose NORMAL deltas are normalised int8.
     pub int8_normal_targets: usize,
-    /// Targets whose NORMAL deltas are normalised int16 (the others, int8 or float).
+    /// Targets whose NORMAL deltas are normalised int16. Both counts include the normal targets;
+    /// the other targets' NORMAL is float, or zero.
     pub int16_normal_targets: usize,
     /// The node's uniform scale s (world = t + s · stored), 1 unquantised.
     pub node_scale: f64,
@@ -254,7 +255,7 @@ pub struct BasisStats {
     pub singular_values: Vec<f64>,
     /// Whether one more target, `normal_offset` (zero POSITION, weight 1 in every frame), carries
     /// the NORMAL offset from the base shape's own normals to the fitted ones (see
-    /// [`super::basis`]); then `targets + 1` targets are written.
+    /// [`super::basis`]); then `targets + 1 + normal_targets` targets are written.
     pub normal_offset_target: bool,
     /// Normal targets (zero POSITION, NORMAL of their own, own weights; counted in the file's
     /// targets, not in `targets`): 0 unless their file was smaller.
@@ -282,6 +283,11 @@ const RANGE_PAD: f64 = 0.01;
 const CLAMP_MAX_DEGREES: f64 = 2.0;
 /// ...and the mean normal error by at most this (degrees).
 const CLAMP_MEAN_DEGREES: f64 = 0.1;
+/// Without `--max-targets`, normal targets are added only while the file keeps at most this
+/// many targets in all: the count engines handle comfortably (three.js keeps one influence and
+/// one morph-texture layer per target; the glTF cache of one target per frame that prompted the
+/// basis had 240).
+const NORMAL_TARGET_BUDGET: usize = 64;
 /// Headroom of a normal gain, so that normal deltas refitted after the gain still fit.
 const GAIN_MARGIN: f64 = 1.02;
 /// Largest value of a normalised int16.
@@ -471,10 +477,16 @@ pub fn encode_basis_gltf(
         // Quantised targets are two thirds of the size of f32 ones: try as many extra targets as
         // still make the file smaller.
         let k0 = pick.0.k;
+        // With normals, leave `--max-targets` room for the offset target when K0 did.
+        let room = if options.normals && k0 < cap {
+            cap - 1
+        } else {
+            cap
+        };
         let limit = if basis.quantize == QuantizeMode::On || basis.size != BasisSize::Auto {
             k0
         } else {
-            (k0 * 3 / 2).min(cap)
+            (k0 * 3 / 2).min(room)
         };
         // Each K from the fewest that fits: the targets of small amplitude as int8 (see
         // `with_int8_targets`); the K whose targets take the fewest bytes, stopping after two
@@ -600,8 +612,13 @@ pub fn encode_basis_gltf(
     // about as close to the bake as the shared deltas with the offset (within the margins used
     // for clamping normal deltas); that one when no other is.
     let encode = |pick: Pick| -> Result<EncodedBasis> {
-        let plain = encode(&pick, NormalLayout::Shared { offset: false })?
-            .expect("shared normals always apply within the targets chosen");
+        // The shared layout applies whenever K is within `--max-targets`, as every pick's is.
+        let plain = encode(&pick, NormalLayout::Shared { offset: false })?.ok_or_else(|| {
+            Error::param_value(
+                Param::MaxTargets,
+                format!("fewer than the {} targets the basis needs", pick.0.k),
+            )
+        })?;
         if !options.normals {
             return Ok(plain);
         }
@@ -1372,13 +1389,19 @@ fn written_normals(
         return (layout != NormalLayout::Basis).then_some(fitted);
     }
     if layout == NormalLayout::Basis {
+        // Its zero accessors are sparse: not with `--sparse off`.
+        if options.sparse == SparseMode::Off {
+            return None;
+        }
         let (max, mean) = exact();
         let accept =
             |e: (f64, f64)| e.0 <= max + CLAMP_MAX_DEGREES && e.1 <= mean + CLAMP_MEAN_DEGREES;
-        // At most as many normal targets as position targets, within `--max-targets`.
+        // At most as many normal targets as position targets, within `--max-targets` (else
+        // within [`NORMAL_TARGET_BUDGET`] targets in all).
         let cap = basis
             .max_targets
-            .map_or(c.k, |m| m.saturating_sub(c.k + 1))
+            .unwrap_or(NORMAL_TARGET_BUDGET)
+            .saturating_sub(c.k + 1)
             .min(c.k);
         let nb = normal_basis(
             frames,
@@ -1448,12 +1471,13 @@ fn written_normals(
 /// A basis for the normals alone: the residual normals `n_f − (n_b + o)` of every frame (a
 /// 3V × F matrix) get a thin SVD, and the first J directions become *normal targets*: POSITION
 /// zero (Blender, which drops NORMAL deltas, shows nothing for them), NORMAL the direction
-/// scaled so that its largest component is 1, as normalised int8 (else the leading third
-/// int16, else all int16), and weights of
+/// scaled so that its largest component is 1, as normalised int8, the leading third int16, or
+/// all int16, and weights of
 /// their own, refitted per frame by least squares against the stored values (free in sign and
 /// size: they move no position, so Blender's slider range does not matter). J is the smallest,
 /// up to `cap`, whose played normals (interpolated weights at dropped frames, renormalised)
-/// are accepted by `accept` (largest and mean angle to the baked normals, degrees). Shared
+/// are accepted by `accept` (largest and mean angle to the baked normals, degrees), at the
+/// coarsest of the three precisions that is accepted. Shared
 /// weights tie the normals to the position motion, whose small-amplitude targets have tiny
 /// weights and so need normal deltas far outside what a normalised integer holds; normal
 /// targets of their own need neither f32 nor one target per position target.
@@ -1465,6 +1489,9 @@ fn normal_basis(
     cap: usize,
     accept: impl Fn((f64, f64)) -> bool,
 ) -> Option<NormalBasis> {
+    if cap == 0 {
+        return None;
+    }
     let (f, v) = (frames.frame_count(), frames.vertex_count());
     let residual = |i: usize, j: usize| -> f64 {
         (frames.normals(j)[i / 3][i % 3] - played_base[i / 3][i % 3]) as f64
@@ -1475,54 +1502,62 @@ fn normal_basis(
     let scale = s[0].max(f64::MIN_POSITIVE);
     let rank = (0..s.nrows()).take_while(|&k| s[k] > scale * 1e-12).count();
     let cap = cap.min(rank);
-    // Three precisions, tried in turn: every direction as int8; the leading third (largest
-    // singular values, so largest weights and rounding) as int16 and the rest int8; all int16.
-    for int16_first in [0, cap.div_ceil(3), cap] {
-        // Every direction stored, and its Gram matrix and right-hand sides against every frame.
-        let stored: Vec<StoredDelta> = (0..cap)
-            .map(|k| {
-                let int8 = k >= int16_first;
-                let largest = (0..3 * v).map(|i| u[(i, k)].abs()).fold(0.0, f64::max);
-                let d = (0..v).map(|i| {
-                    DVec3::new(u[(3 * i, k)], u[(3 * i + 1, k)], u[(3 * i + 2, k)]) / largest
-                });
-                if int8 {
-                    StoredDelta::I8(d.map(|x| quantize_i8(x.as_vec3())).collect())
-                } else {
-                    StoredDelta::I16(d.map(quantize_i16).collect())
+    // Three precisions: every direction as int8; the leading third (largest singular values,
+    // so largest weights and rounding) as int16 and the rest int8; all int16. Each with its
+    // stored directions, their Gram matrix and right-hand sides against every frame.
+    let mut splits = vec![0, cap.div_ceil(3), cap];
+    splits.dedup();
+    let stages: Vec<_> = splits
+        .into_iter()
+        .map(|int16_first| {
+            let stored: Vec<StoredDelta> = (0..cap)
+                .map(|k| {
+                    let largest = (0..3 * v).map(|i| u[(i, k)].abs()).fold(0.0, f64::max);
+                    let d = (0..v).map(|i| {
+                        DVec3::new(u[(3 * i, k)], u[(3 * i + 1, k)], u[(3 * i + 2, k)]) / largest
+                    });
+                    if k >= int16_first {
+                        StoredDelta::I8(d.map(|x| quantize_i8(x.as_vec3())).collect())
+                    } else {
+                        StoredDelta::I16(d.map(quantize_i16).collect())
+                    }
+                })
+                .collect();
+            let read: Vec<Vec<Vec3>> = stored.iter().map(StoredDelta::dequantized).collect();
+            let mut gram = vec![0.0f64; cap * cap];
+            for a in 0..cap {
+                for b in 0..=a {
+                    let g: f64 = read[a]
+                        .iter()
+                        .zip(&read[b])
+                        .map(|(x, y)| x.as_dvec3().dot(y.as_dvec3()))
+                        .sum();
+                    gram[a * cap + b] = g;
+                    gram[b * cap + a] = g;
                 }
-            })
-            .collect();
-        let read: Vec<Vec<Vec3>> = stored.iter().map(StoredDelta::dequantized).collect();
-        let mut gram = vec![0.0f64; cap * cap];
-        for a in 0..cap {
-            for b in 0..=a {
-                let g: f64 = read[a]
-                    .iter()
-                    .zip(&read[b])
-                    .map(|(x, y)| x.as_dvec3().dot(y.as_dvec3()))
-                    .sum();
-                gram[a * cap + b] = g;
-                gram[b * cap + a] = g;
             }
-        }
-        let rhs: Vec<Vec<f64>> = (0..f)
-            .map(|j| {
-                (0..cap)
-                    .map(|a| {
-                        read[a]
-                            .iter()
-                            .enumerate()
-                            .map(|(i, x)| {
-                                let n = frames.normals(j)[i] - played_base[i];
-                                x.as_dvec3().dot(n.as_dvec3())
-                            })
-                            .sum()
-                    })
-                    .collect()
-            })
-            .collect();
-        for n in 1..=cap {
+            let rhs: Vec<Vec<f64>> = (0..f)
+                .map(|j| {
+                    (0..cap)
+                        .map(|a| {
+                            read[a]
+                                .iter()
+                                .enumerate()
+                                .map(|(i, x)| {
+                                    let n = frames.normals(j)[i] - played_base[i];
+                                    x.as_dvec3().dot(n.as_dvec3())
+                                })
+                                .sum()
+                        })
+                        .collect()
+                })
+                .collect();
+            (stored, read, gram, rhs)
+        })
+        .collect();
+    // The fewest normal targets first (engines pay per target), then the coarsest precision.
+    for n in 1..=cap {
+        for (stored, read, gram, rhs) in &stages {
             let g: Vec<f64> = (0..n * n).map(|x| gram[(x / n) * cap + x % n]).collect();
             let l = cholesky(&g, n);
             let weights: Vec<Vec<f32>> = rhs
