@@ -30,7 +30,8 @@ pub enum SparseMode {
     /// Sparse where it is smaller than dense.
     #[default]
     Auto,
-    /// Always dense.
+    /// Always dense (a basis cache then writes no normal targets; its `normal_offset`
+    /// target's zero POSITION stays a one-entry sparse accessor).
     Off,
 }
 

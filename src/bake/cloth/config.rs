@@ -260,13 +260,15 @@ pub struct ClothJob {
     )]
     #[serde(alias = "basis-tolerance")]
     pub basis_tolerance: Option<f64>,
-    /// Most morph targets written (for engines that cap them); an error if the tolerance
-    /// cannot be met within N.
+    /// Most morph targets written, a basis cache's normal targets included (for engines that
+    /// cap them); an error if the tolerance cannot be met within N. Without it a basis cache
+    /// adds normal targets only while it keeps 64 targets in all.
     #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
     #[serde(alias = "max-targets")]
     pub max_targets: Option<usize>,
-    /// KHR_mesh_quantization for a --basis cache: int16 positions and deltas, int8 normals,
-    /// dequantised by the node's scale and translation; auto quantises when the measured error
+    /// KHR_mesh_quantization for a --basis cache: int16/int8 positions and deltas, int16/int8
+    /// normals and normal deltas, u16 texture coordinates, dequantised by the node's scale and
+    /// translation; auto quantises when the measured error
     /// stays within --basis-tolerance [default: auto with --basis].
     #[cfg_attr(feature = "cli", arg(long, value_enum, value_name = "MODE"))]
     pub quantize: Option<QuantizeMode>,
