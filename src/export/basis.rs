@@ -644,8 +644,11 @@ pub fn encode_basis_gltf(
             ))
     };
     let first = encode(pick)?;
-    // Keep the normal-gained encoding only when its file is smaller.
-    match gained {
+    // Keep the normal-gained encoding only when its file is smaller. Gains serve normal deltas
+    // shared with the position targets: not tried when the normals went to normal targets
+    // (whose file beat the shared layouts of the same pick; the gained pick's int16 positions
+    // only add bytes).
+    match gained.filter(|_| first.basis.normal_targets == 0) {
         Some(alt) => {
             let second = encode(alt)?;
             Ok(if size(&second) < size(&first) {
