@@ -574,18 +574,9 @@ pub fn encode_basis_gltf(
     };
     let size = |e: &EncodedBasis| e.morph.files.iter().map(|(_, b)| b.len()).sum::<usize>();
     let targets_allowed = |n: usize| basis.max_targets.is_none_or(|m| n <= m);
-    // Writes `pick` with the normals laid out as `layout`; `None` when that layout does not
-    // apply (no normal basis within the margins, or more targets than allowed).
-    let encode = |pick: &Pick, layout: NormalLayout| -> Result<Option<EncodedBasis>> {
+    // Writes `pick` with `normals`; `None` when that needs more targets than allowed.
+    let encode = |pick: &Pick, normals: Option<WrittenNormals>| -> Result<Option<EncodedBasis>> {
         let (c, keys, max_error, worst_frame) = pick;
-        let normals = if options.normals {
-            match written_normals(mesh, frames, c, keys, options, basis, layout) {
-                Some(n) => Some(n),
-                None => return Ok(None),
-            }
-        } else {
-            None
-        };
         let extra = normals.as_ref().map_or(0, |n| {
             usize::from(n.offset.is_some()) + n.basis.as_ref().map_or(0, |b| b.stored.len())
         });
@@ -607,22 +598,32 @@ pub fn encode_basis_gltf(
         )
         .map(Some)
     };
-    // The normal layouts: shared deltas with and without the offset target, and normal
-    // targets of their own. The smallest file whose played normals (what engines show) are
-    // about as close to the bake as the shared deltas with the offset (within the margins used
-    // for clamping normal deltas); that one when no other is.
+    // The normal layouts (module documentation): shared deltas without and with the offset
+    // target, and normal targets of their own, the last two from one fit. The smallest file
+    // whose played normals (what engines show) are about as close to the bake as the shared
+    // deltas with the offset (within the margins used for clamping normal deltas); that one when
+    // no other is.
     let encode = |pick: Pick| -> Result<EncodedBasis> {
+        let (c, keys) = (&pick.0, &pick.1);
         // The shared layout applies whenever K is within `--max-targets`, as every pick's is.
-        let plain = encode(&pick, NormalLayout::Shared { offset: false })?.ok_or_else(|| {
+        let too_many = || {
             Error::param_value(
                 Param::MaxTargets,
-                format!("fewer than the {} targets the basis needs", pick.0.k),
+                format!("fewer than the {} targets the basis needs", c.k),
             )
-        })?;
+        };
         if !options.normals {
-            return Ok(plain);
+            return encode(&pick, None)?.ok_or_else(too_many);
         }
-        let Some(with) = encode(&pick, NormalLayout::Shared { offset: true })? else {
+        let base = stored_base_normals(&base_shape_normals(mesh, frames, c), c.quantized);
+        let shared = |fit: &WrittenNormals| shared_normals(fit, frames, c, keys, options, basis);
+        let plain = encode(
+            &pick,
+            Some(shared(&fitted_normals(frames, c, &base, false))),
+        )?
+        .ok_or_else(too_many)?;
+        let fit = fitted_normals(frames, c, &base, true);
+        let Some(with) = encode(&pick, Some(shared(&fit)))? else {
             return Ok(plain);
         };
         let reference = (
@@ -633,7 +634,10 @@ pub fn encode_basis_gltf(
             e.basis.max_normal_error_degrees <= reference.0 + CLAMP_MAX_DEGREES
                 && e.basis.mean_normal_error_degrees <= reference.1 + CLAMP_MEAN_DEGREES
         };
-        let own = encode(&pick, NormalLayout::Basis)?;
+        let own = match with_normal_targets(fit, frames, c, keys, options, basis) {
+            Some(n) => encode(&pick, Some(n))?,
+            None => None,
+        };
         Ok([Some(plain), own]
             .into_iter()
             .flatten()
@@ -1288,18 +1292,6 @@ fn normal_errors(
     (worst, sum / n.max(1) as f64)
 }
 
-/// How the NORMAL deltas are laid out over the targets.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum NormalLayout {
-    /// Each position target carries NORMAL deltas fitted given its weights; with `offset`, one
-    /// more target, `normal_offset` (zero POSITION, weight 1 in every key), carries the
-    /// constant term.
-    Shared { offset: bool },
-    /// The position targets carry zero NORMAL deltas; `normal_offset` and J *normal targets*
-    /// (zero POSITION, weights of their own) carry the normals (see [`normal_basis`]).
-    Basis,
-}
-
 /// The normals as written: the base NORMAL, each target's NORMAL deltas, the `normal_offset`
 /// target's NORMAL and the normal targets, each as a player reads it, with the stored integers
 /// when quantised.
@@ -1313,7 +1305,7 @@ struct WrittenNormals {
     offset: Option<StoredOffset>,
     /// What a player adds up before the deltas: the base, plus the offset at weight 1.
     played_base: Vec<Vec3>,
-    /// With [`NormalLayout::Basis`].
+    /// The normal targets (see [`with_normal_targets`]).
     basis: Option<NormalBasis>,
 }
 
@@ -1344,29 +1336,17 @@ struct NormalBasis {
     weights: Vec<Vec<f32>>,
 }
 
-/// The normals of candidate `c` laid out as `layout` (see the module documentation); `None`
-/// when [`NormalLayout::Basis`] finds no normal basis within the margins or `c` is not
-/// quantised.
-///
-/// The base NORMAL is the base shape's own normals (int16 when quantised). With
-/// [`NormalLayout::Shared`], each target's deltas are fitted given its weights; quantised, a
-/// target's deltas are int8 when every component fits in [-1, 1], and the others are int8
-/// clamped when that raises the measured normal error by at most [`CLAMP_MAX_DEGREES`] /
-/// [`CLAMP_MEAN_DEGREES`] (always with `--quantize on`), else f32.
-fn written_normals(
-    mesh: &Mesh,
+/// The base normals as stored (see [`stored_base_normals`]) with the deltas of candidate `c`
+/// fitted to the baked normals in f32 (see [`fit_normal_deltas`]) and, with `offset`, the
+/// `normal_offset` target's NORMAL (int16 when quantised and every component fits: int8's step
+/// would show in every frame's normal).
+fn fitted_normals(
     frames: &RenderFrames,
     c: &Candidate,
-    keys: &[usize],
-    options: &MorphOptions,
-    basis: &BasisOptions,
-    layout: NormalLayout,
-) -> Option<WrittenNormals> {
-    let (base, base_q) = stored_base_normals(&base_shape_normals(mesh, frames, c), c.quantized);
-    let offset = layout != NormalLayout::Shared { offset: false };
-    let (o, deltas) = fit_normal_deltas(frames, c, &base, c.k, offset);
-    // The offset as int16 when quantised and every component fits (int8's step would show in
-    // every frame's normal).
+    (base, base_q): &(Vec<Vec3>, Option<Vec<[i16; 3]>>),
+    offset: bool,
+) -> WrittenNormals {
+    let (o, deltas) = fit_normal_deltas(frames, c, base, c.k, offset);
     let (o, o_q) = if c.quantized && o.iter().all(|x| x.abs().max_element() <= 1.0) {
         let q: Vec<[i16; 3]> = o.iter().map(|x| quantize_i16(x.as_dvec3())).collect();
         (q.iter().map(|x| dequantize_i16(*x)).collect(), Some(q))
@@ -1378,51 +1358,29 @@ fn written_normals(
     } else {
         base.clone()
     };
-    let fitted = WrittenNormals {
-        base,
-        base_q,
+    WrittenNormals {
+        base: base.clone(),
+        base_q: base_q.clone(),
         deltas,
         deltas_q: vec![None; c.k],
         offset: offset.then_some((o, o_q)),
         played_base,
         basis: None,
-    };
-    let exact = || fitted.errors(frames, c, keys, options.interpolation);
-    if fitted.base_q.is_none() {
-        return (layout != NormalLayout::Basis).then_some(fitted);
     }
-    if layout == NormalLayout::Basis {
-        // Its zero accessors are sparse: not with `--sparse off`.
-        if options.sparse == SparseMode::Off {
-            return None;
-        }
-        let (max, mean) = exact();
-        let accept =
-            |e: (f64, f64)| e.0 <= max + CLAMP_MAX_DEGREES && e.1 <= mean + CLAMP_MEAN_DEGREES;
-        // At most as many normal targets as position targets, within `--max-targets` (else
-        // within [`NORMAL_TARGET_BUDGET`] targets in all).
-        let cap = basis
-            .max_targets
-            .unwrap_or(NORMAL_TARGET_BUDGET)
-            .saturating_sub(c.k + 1)
-            .min(c.k);
-        let nb = normal_basis(
-            frames,
-            &fitted.played_base,
-            keys,
-            options.interpolation,
-            cap,
-            accept,
-        )?;
-        let v = frames.vertex_count();
-        return Some(WrittenNormals {
-            deltas: vec![vec![Vec3::ZERO; v]; c.k],
-            basis: Some(nb),
-            ..fitted
-        });
-    }
-    // Each target's deltas as int8 where every component fits in [-1, 1]; the others as int8
-    // clamped when that costs little (measured), else f32.
+}
+
+/// The *shared* layout: the `fitted` deltas as written, each position target carrying its own. Quantised, a target's deltas are
+/// int8 when every component fits in [-1, 1], and the others are int8 clamped when that raises
+/// the measured normal error by at most [`CLAMP_MAX_DEGREES`] / [`CLAMP_MEAN_DEGREES`] (always
+/// with `--quantize on`), else f32.
+fn shared_normals(
+    fitted: &WrittenNormals,
+    frames: &RenderFrames,
+    c: &Candidate,
+    keys: &[usize],
+    options: &MorphOptions,
+    basis: &BasisOptions,
+) -> WrittenNormals {
     let fits: Vec<bool> = fitted
         .deltas
         .iter()
@@ -1431,7 +1389,7 @@ fn written_normals(
     let encode = |clamp: bool| {
         let (mut read, mut stored) = (Vec::new(), Vec::new());
         for (t, fit) in fitted.deltas.iter().zip(&fits) {
-            if *fit || clamp {
+            if fitted.base_q.is_some() && (*fit || clamp) {
                 let q = StoredDelta::I8(t.iter().map(|x| quantize_i8(*x)).collect());
                 read.push(q.dequantized());
                 stored.push(Some(q));
@@ -1440,35 +1398,71 @@ fn written_normals(
                 stored.push(None);
             }
         }
-        (read, stored)
+        WrittenNormals {
+            base: fitted.base.clone(),
+            base_q: fitted.base_q.clone(),
+            deltas: read,
+            deltas_q: stored,
+            offset: fitted.offset.clone(),
+            played_base: fitted.played_base.clone(),
+            basis: None,
+        }
     };
-    let with = |(deltas, deltas_q): (Vec<Vec<Vec3>>, Vec<Option<StoredDelta>>)| WrittenNormals {
-        base: fitted.base.clone(),
-        base_q: fitted.base_q.clone(),
-        deltas,
-        deltas_q,
-        offset: fitted.offset.clone(),
-        played_base: fitted.played_base.clone(),
-        basis: None,
-    };
-    let unclamped = with(encode(false));
-    if fits.iter().all(|f| *f) {
-        return Some(unclamped);
+    let unclamped = encode(false);
+    if fitted.base_q.is_none() || fits.iter().all(|f| *f) {
+        return unclamped;
     }
-    let clamped = with(encode(true));
+    let clamped = encode(true);
     let (e, ec) = (
         unclamped.errors(frames, c, keys, options.interpolation),
         clamped.errors(frames, c, keys, options.interpolation),
     );
-    Some(
-        if basis.quantize == QuantizeMode::On
-            || (ec.0 <= e.0 + CLAMP_MAX_DEGREES && ec.1 <= e.1 + CLAMP_MEAN_DEGREES)
-        {
-            clamped
-        } else {
-            unclamped
-        },
-    )
+    if basis.quantize == QuantizeMode::On
+        || (ec.0 <= e.0 + CLAMP_MAX_DEGREES && ec.1 <= e.1 + CLAMP_MEAN_DEGREES)
+    {
+        clamped
+    } else {
+        unclamped
+    }
+}
+
+/// The layout with *normal targets*, from `fitted` (fitted with the offset): zero deltas on the
+/// position targets, and normal targets (see [`normal_basis`]) whose normal error is within
+/// [`CLAMP_MAX_DEGREES`] / [`CLAMP_MEAN_DEGREES`] of `fitted`'s, at most as many as position
+/// targets, within `--max-targets` (else [`NORMAL_TARGET_BUDGET`] targets in all). `None` when
+/// `c` is not quantised, with `--sparse off` (the zero accessors are sparse), or when no such
+/// normal targets exist.
+fn with_normal_targets(
+    fitted: WrittenNormals,
+    frames: &RenderFrames,
+    c: &Candidate,
+    keys: &[usize],
+    options: &MorphOptions,
+    basis: &BasisOptions,
+) -> Option<WrittenNormals> {
+    if fitted.base_q.is_none() || options.sparse == SparseMode::Off {
+        return None;
+    }
+    let (max, mean) = fitted.errors(frames, c, keys, options.interpolation);
+    let accept = |e: (f64, f64)| e.0 <= max + CLAMP_MAX_DEGREES && e.1 <= mean + CLAMP_MEAN_DEGREES;
+    let cap = basis
+        .max_targets
+        .unwrap_or(NORMAL_TARGET_BUDGET)
+        .saturating_sub(c.k + 1)
+        .min(c.k);
+    let nb = normal_basis(
+        frames,
+        &fitted.played_base,
+        keys,
+        options.interpolation,
+        cap,
+        accept,
+    )?;
+    Some(WrittenNormals {
+        deltas: vec![vec![Vec3::ZERO; frames.vertex_count()]; c.k],
+        basis: Some(nb),
+        ..fitted
+    })
 }
 
 /// A basis for the normals alone: the residual normals `n_f − (n_b + o)` of every frame (a
@@ -1691,7 +1685,7 @@ fn write(
         target_bytes: 0,
     };
 
-    // Normals (see `written_normals`).
+    // Normals (see `fitted_normals`, `shared_normals` and `with_normal_targets`).
     let normals_q = normals.as_ref().is_some_and(|n| n.base_q.is_some());
     let count_normal_targets = |want: fn(&StoredDelta) -> bool| {
         normals.as_ref().map_or(0, |n| {
@@ -1804,49 +1798,60 @@ fn write(
     }
     let mut names: Vec<String> = (1..=c.k).map(|t| format!("basis_{t:02}")).collect();
     let offset_target = normals.as_ref().and_then(|n| n.offset.as_ref());
-    if let Some((o, o_q)) = offset_target {
+    // Targets that move nothing: zero POSITION, then their NORMAL written by `normal`.
+    let vertices = frames.vertex_count();
+    let mut normal_only = |b: &mut GltfBuilder,
+                           stats: &mut CacheStats,
+                           name: String,
+                           normal: &dyn Fn(
+        &mut GltfBuilder,
+        &mut CacheStats,
+    ) -> json::Index<json::Accessor>| {
         let start = b.buffer_len();
-        let zero = zero_vec3(&mut b, frames.vertex_count());
+        let zero = zero_vec3(b, vertices);
         stats.sparse_accessors += 1;
         bytes.target_positions += (b.buffer_len() - start) as u64;
         let start = b.buffer_len();
-        let n = match o_q {
-            Some(q) => {
-                stats.dense_accessors += 1;
-                i16_vec3(&mut b, q, array, false)
-            }
-            None => {
-                let (a, e) = delta_accessor(&mut b, o, options.sparse, false);
-                count(&mut stats, e);
-                a
-            }
-        };
+        let n = normal(b, stats);
         bytes.target_normals += (b.buffer_len() - start) as u64;
         targets.push(json::mesh::MorphTarget {
             positions: Some(zero),
             normals: Some(n),
             tangents: None,
         });
-        names.push("normal_offset".into());
+        names.push(name);
         stats.targets += 1;
+    };
+    if let Some((o, o_q)) = offset_target {
+        normal_only(
+            &mut b,
+            &mut stats,
+            "normal_offset".into(),
+            &|b, stats| match o_q {
+                Some(q) => {
+                    stats.dense_accessors += 1;
+                    i16_vec3(b, q, array, false)
+                }
+                None => {
+                    let (a, e) = delta_accessor(b, o, options.sparse, false);
+                    count(stats, e);
+                    a
+                }
+            },
+        );
     }
     let normal_basis = normals.as_ref().and_then(|n| n.basis.as_ref());
     for (j, q) in normal_basis.iter().flat_map(|n| &n.stored).enumerate() {
-        let start = b.buffer_len();
-        let zero = zero_vec3(&mut b, frames.vertex_count());
-        stats.sparse_accessors += 1;
-        bytes.target_positions += (b.buffer_len() - start) as u64;
-        let start = b.buffer_len();
-        let (n, e) = quantized_delta_accessor(&mut b, q, options.sparse);
-        count(&mut stats, e);
-        bytes.target_normals += (b.buffer_len() - start) as u64;
-        targets.push(json::mesh::MorphTarget {
-            positions: Some(zero),
-            normals: Some(n),
-            tangents: None,
-        });
-        names.push(format!("normal_{:02}", j + 1));
-        stats.targets += 1;
+        normal_only(
+            &mut b,
+            &mut stats,
+            format!("normal_{:02}", j + 1),
+            &|b, stats| {
+                let (a, e) = quantized_delta_accessor(b, q, options.sparse);
+                count(stats, e);
+                a
+            },
+        );
     }
     let offset_weight = offset_target.map(|_| 1.0f32);
     // Every key's weights: the position targets', the offset's, the normal targets'.
