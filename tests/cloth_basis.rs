@@ -159,14 +159,24 @@ fn read_vec3(a: &gltf::Accessor<'_>, buffers: &[gltf::buffer::Data]) -> Vec<Vec3
     out
 }
 
-fn load(path: &Path) -> Played {
-    // The gltf crate validates extensionsRequired against the extensions it implements, which
-    // do not include KHR_mesh_quantization: parse without that check, decode the bytes here.
+/// The document and buffers of `path`. The gltf crate validates extensionsRequired against the
+/// extensions it implements, which do not include KHR_mesh_quantization: parse without that
+/// check (the accessors are decoded here, by `read_vec3`).
+fn open(path: &Path) -> (gltf::Document, Vec<gltf::buffer::Data>) {
     let bytes = std::fs::read(path).unwrap();
     let gltf =
         gltf::Gltf::from_slice_without_validation(&bytes).expect("parse with the gltf crate");
     let buffers = gltf::import_buffers(&gltf.document, path.parent(), gltf.blob.clone()).unwrap();
-    let doc = gltf.document;
+    (gltf.document, buffers)
+}
+
+/// The first primitive of the first mesh.
+fn first_primitive(doc: &gltf::Document) -> gltf::Primitive<'_> {
+    doc.meshes().next().unwrap().primitives().next().unwrap()
+}
+
+fn load(path: &Path) -> Played {
+    let (doc, buffers) = open(path);
     let node = doc.nodes().next().unwrap();
     let mesh = node.mesh().unwrap();
     let prim = mesh.primitives().next().unwrap();
@@ -339,19 +349,10 @@ fn quantized_basis_uses_int16_and_stays_within_the_tolerance() {
 
     // Texture coordinates (within [0, 1]) as normalised u16, the float file's to half a step.
     let uvs = |path: &Path, want: gltf::accessor::DataType| -> Vec<[f32; 2]> {
-        let bytes = std::fs::read(path).unwrap();
-        let gltf = gltf::Gltf::from_slice_without_validation(&bytes).unwrap();
-        let buffers =
-            gltf::import_buffers(&gltf.document, path.parent(), gltf.blob.clone()).unwrap();
-        let prim = gltf
-            .document
-            .meshes()
-            .next()
-            .unwrap()
-            .primitives()
-            .next()
+        let (doc, buffers) = open(path);
+        let a = first_primitive(&doc)
+            .get(&gltf::Semantic::TexCoords(0))
             .unwrap();
-        let a = prim.get(&gltf::Semantic::TexCoords(0)).unwrap();
         assert_eq!(a.data_type(), want);
         assert_eq!(a.normalized(), want == gltf::accessor::DataType::U16);
         let view = a.view().unwrap();
@@ -539,18 +540,8 @@ fn base_normals_are_the_base_shapes_own_and_every_face_imports_smooth() {
         }
         let info = scenebake::inspect::inspect(&out).unwrap();
         assert_eq!(info.failures().count(), 0);
-        let bytes = std::fs::read(&out).unwrap();
-        let gltf = gltf::Gltf::from_slice_without_validation(&bytes).unwrap();
-        let buffers =
-            gltf::import_buffers(&gltf.document, out.parent(), gltf.blob.clone()).unwrap();
-        let prim = gltf
-            .document
-            .meshes()
-            .next()
-            .unwrap()
-            .primitives()
-            .next()
-            .unwrap();
+        let (doc, buffers) = open(&out);
+        let prim = first_primitive(&doc);
         let base = read_vec3(&prim.get(&gltf::Semantic::Positions).unwrap(), &buffers);
         let normals = prim.get(&gltf::Semantic::Normals).unwrap();
         if quantize == QuantizeMode::Auto {

@@ -62,6 +62,18 @@ pub enum Interpolation {
     CubicSpline,
 }
 
+impl Interpolation {
+    /// Sampler output elements stored per key: three for a cubic spline (in-tangent, value,
+    /// out-tangent), else one.
+    pub fn values_per_key(self) -> usize {
+        if self == Interpolation::CubicSpline {
+            3
+        } else {
+            1
+        }
+    }
+}
+
 /// One animated property of one node.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Track {

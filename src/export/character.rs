@@ -155,11 +155,7 @@ fn driving_animation(b: &mut GltfBuilder, character: &CharacterOptions<'_>) -> j
     let mut channels = Vec::new();
     let mut samplers = Vec::new();
     for track in &clip.tracks {
-        let per_key = if track.interpolation == Interpolation::CubicSpline {
-            3
-        } else {
-            1
-        };
+        let per_key = track.interpolation.values_per_key();
         let (times, keys) = looped_keys(&track.times, period, character.cycles);
         let values: Vec<_> = keys
             .iter()
@@ -193,12 +189,7 @@ fn driving_animation(b: &mut GltfBuilder, character: &CharacterOptions<'_>) -> j
         ));
     }
     for track in &clip.weights {
-        let per_key = track.targets
-            * if track.interpolation == Interpolation::CubicSpline {
-                3
-            } else {
-                1
-            };
+        let per_key = track.targets * track.interpolation.values_per_key();
         let (times, keys) = looped_keys(&track.times, period, character.cycles);
         let values: Vec<f32> = keys
             .iter()

@@ -396,11 +396,7 @@ impl RigDocument {
                 gltf::animation::Interpolation::Linear => Interpolation::Linear,
                 gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
             };
-            let per_key = if interpolation == Interpolation::CubicSpline {
-                3
-            } else {
-                1
-            };
+            let per_key = interpolation.values_per_key();
             let bad_times = times.is_empty()
                 || times.windows(2).any(|w| w[1] <= w[0])
                 || times.iter().any(|t| !t.is_finite());
