@@ -22,9 +22,9 @@ fn cape_job(output: &Path) -> ClothJob {
         rig: Some(common::mesh_path("Fox.glb")),
         animation: Some("Walk".into()),
         rig_scale: 0.01,
-        // As the demo (scenes/demo.toml): at the default 5.7 mm the neck squeezes the edges
-        // behind the pins against the collider past 10 %.
-        thickness: Some(0.004),
+        // As the demo (scenes/demo.toml): at the default 5.7 mm (and at 4 mm since the jamming
+        // ramp) the neck squeezes the edges behind the pins against the collider past 10 %.
+        thickness: Some(0.003),
         max_iterations: Some(100),
         pin: vec![format!("box:{PIN}").parse::<PinSpec>().unwrap()],
         ..ClothJob::default()
@@ -55,8 +55,8 @@ fn check(file: &Path, thickness: f64) -> Option<(bool, serde_json::Value)> {
         .arg(common::mesh_path("garments/fox_cape.obj"))
         .arg(format!("--pin={PIN}"))
         .args(["--thickness", &thickness.to_string()])
-        // No edge past 10 % strain: cotton jams at 9 % compression (DEFAULT_JAM_STRAIN in
-        // src/cloth/material.rs) and a jammed edge settles a little past it under load.
+        // No edge past 10 % strain: cotton jams around 8 % compression (DEFAULT_JAM_STRAIN in
+        // src/cloth/material.rs, along a ramp from 4 % to 12 %).
         .args(["--max-strain", "0.10"])
         .arg("--json")
         .arg(&json)

@@ -9,13 +9,16 @@ use std::path::{Path, PathBuf};
 use scenebake::bake::cloth::{prepare_cloth, ClothJob, ClothSource, PreparedCloth};
 use scenebake::cloth::material::DEFAULT_JAM_STRAIN;
 use scenebake::cloth::pins::PinSpec;
+use scenebake::cloth::system::JAM_RAMP;
 use scenebake::cloth::{make_solver, simulate};
 use scenebake::glam::DVec3;
 
 /// ρ = ‖∇g‖ / ‖M·g‖ over the free particles for the step from (x₋₂, x₋₁) to x, evaluated from
 /// the model's springs, bending stencils and masses with this file's own formulas:
 /// ∇g = s·m/h²·(x − y) + Σ k(|r| − l)·r/|r| + Σ wᵢ(Σ wⱼxⱼ), y = x₋₁ + (h·v + h²·g)/s, springs
-/// jamming at the compression strain `jam`. Also returns how many springs are jammed.
+/// jamming around the compression strain `jam`: the tension stiffness adds back along a linear
+/// ramp from (1 − JAM_RAMP)·jam to (1 + JAM_RAMP)·jam. Also returns how many springs are on or
+/// past their ramp.
 fn recomputed_residual(
     p: &PreparedCloth,
     jam: f64,
@@ -40,12 +43,24 @@ fn recomputed_residual(
         let r = x[a] - x[b];
         let len = r.length();
         let e = len - sp.rest;
-        // Tension k·e; compression kc·e, plus k·(e + J·l) once jammed (kc < k).
+        // Tension k·e; compression kc·e, minus k·∫ramp once jamming (kc < k): with the
+        // compression c = −e and the ramp [c0, c1], ∫ = (c − c0)²/(2(c1 − c0)) on the ramp and
+        // (c1 − c0)/2 + (c − c1) past it.
+        let (c0, c1) = (
+            (1.0 - JAM_RAMP) * jam * sp.rest,
+            (1.0 + JAM_RAMP) * jam * sp.rest,
+        );
         let tension = if e >= 0.0 {
             sp.stiffness * e
-        } else if sp.compression < sp.stiffness && e < -jam * sp.rest {
+        } else if sp.compression < sp.stiffness && -e > c0 {
             jammed += 1;
-            sp.compression * e + sp.stiffness * (e + jam * sp.rest)
+            let c = -e;
+            let ramp = if c < c1 {
+                (c - c0).powi(2) / (2.0 * (c1 - c0))
+            } else {
+                (c1 - c0) / 2.0 + (c - c1)
+            };
+            sp.compression * e - sp.stiffness * ramp
         } else {
             sp.compression * e
         };

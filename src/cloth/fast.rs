@@ -25,7 +25,7 @@ use sprs::CsMat;
 use super::collide::contact::{self, Hold};
 use super::collide::{Collider, Colliders, SurfacePoint};
 use super::factor::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
-use super::system::{spring_response, FreeBends, ReducedSystem, PINNED};
+use super::system::{jam_ramp, spring_response, FreeBends, ReducedSystem, PINNED};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
 use crate::param::Param;
@@ -109,10 +109,8 @@ pub struct FastSolver {
     /// kc/k per free spring: the local step's pull scaled for a compressed spring, so that the
     /// residual is the exact −h²∇g whatever the compression stiffness (1 for the labs' springs).
     soft: Vec<f64>,
-    /// h²·k·(1 − J)·l per free spring that jams (kc < k, J = [`ReducedSystem::jam_strain`]), else
-    /// 0, kg·m: a
-    /// spring shorter than (1 − J)·l adds h²·k·((1 − J)·l/|d| − 1)·d to its push.
-    jam_hkl: Vec<f64>,
+    /// Where each free spring's jamming ramp starts and how it rises (see [`JamRamps`]).
+    jam: JamRamps,
     /// h²·k per anchor, kg.
     hk_anchor: Vec<f64>,
     /// s·m per particle, kg.
@@ -194,15 +192,7 @@ impl FastSolver {
             hkl: sp.k.iter().zip(&sp.rest).map(|(k, l)| h2 * k * l).collect(),
             hk: sp.k.iter().map(|k| h2 * k).collect(),
             soft: sp.kc.iter().zip(&sp.k).map(|(kc, k)| kc / k).collect(),
-            jam_hkl: (0..sp.k.len())
-                .map(|i| {
-                    if sp.kc[i] < sp.k[i] {
-                        h2 * sp.k[i] * (1.0 - sys.jam_strain) * sp.rest[i]
-                    } else {
-                        0.0
-                    }
-                })
-                .collect(),
+            jam: JamRamps::new(&sp.rest, &sp.k, &sp.kc, sys.jam_strain),
             hk_anchor: sys.anchors.k.iter().map(|k| h2 * k).collect(),
             sm: sys.mass.iter().map(|m| s * m).collect(),
             pos: vec![Lanes4::default(); n],
@@ -324,19 +314,11 @@ impl FastSolver {
             // SAFETY: the CPU supports AVX2; `pos` and `res` have the system's length and every
             // spring end is below it (asserted in `with_factor`).
             done = unsafe {
-                springs_avx2(
-                    x,
-                    r,
-                    &self.ends,
-                    &self.hkl,
-                    &self.hk,
-                    &self.soft,
-                    &self.jam_hkl,
-                )
+                springs_avx2(x, r, &self.ends, &self.hkl, &self.hk, &self.soft, &self.jam)
             };
         }
         let springs = (&self.ends[..], &self.hkl[..], &self.hk[..]);
-        springs_scalar(x, r, springs, &self.soft, &self.jam_hkl, done);
+        springs_scalar(x, r, springs, &self.soft, &self.jam, done);
         let h2 = self.sys.params.time_step.powi(2);
         let an = &self.sys.anchors;
         for i in 0..an.a.len() {
@@ -537,16 +519,62 @@ fn solve_single(
     Lanes4(used.map(|s| 1.0 / s))
 }
 
+/// The free springs' jamming ramps in the form the spring kernels evaluate: for a spring
+/// compressed by t = l − |d| (m), the integral of the ramp of
+/// [`super::system::spring_response`], `push` = m²/(2w) + (a − m) with a = max(t − lo, 0) and
+/// m = min(a, w), so that its jammed push is h²k·push/|d|·d. A spring that never jams has
+/// lo = ∞ and pushes nothing.
+#[derive(Debug, Clone)]
+struct JamRamps {
+    /// Rest length l, m.
+    rest: Vec<f64>,
+    /// Compression where the ramp starts, m (∞ for a spring that never jams).
+    lo: Vec<f64>,
+    /// The ramp's width w, m.
+    width: Vec<f64>,
+    /// 1/(2w), 1/m (0 for a spring that never jams).
+    inv: Vec<f64>,
+}
+
+impl JamRamps {
+    fn new(rest: &[f64], k: &[f64], kc: &[f64], jam: f64) -> Self {
+        let n = rest.len();
+        let mut r = JamRamps {
+            rest: rest.to_vec(),
+            lo: vec![f64::INFINITY; n],
+            width: vec![0.0; n],
+            inv: vec![0.0; n],
+        };
+        for i in 0..n {
+            if kc[i] < k[i] {
+                let (lo, hi) = jam_ramp(rest[i], jam);
+                r.lo[i] = lo;
+                r.width[i] = hi - lo;
+                r.inv[i] = 0.5 / (hi - lo);
+            }
+        }
+        r
+    }
+
+    /// ∫ ramp (m) of spring `i` at length `len` (m).
+    #[inline(always)]
+    fn push(&self, i: usize, len: f64) -> f64 {
+        let a = (self.rest[i] - len - self.lo[i]).max(0.0);
+        let m = a.min(self.width[i]);
+        m * m * self.inv[i] + (a - m)
+    }
+}
+
 /// The springs' part of [`FastSolver::residual_step`] from spring `first` on: h²k·(l/|d| − 1)·d
 /// added to end a and subtracted from end b (d = xa − xb; coincident ends pull nothing), scaled
 /// by `soft` = kc/k where the spring is compressed (l/|d| > 1), plus the jammed push
-/// max(0, jam_hkl/|d| − h²k)·d.
+/// h²k·[`JamRamps::push`](l − |d|)/|d|·d.
 fn springs_scalar(
     x: &[Lanes4],
     r: &mut [Lanes4],
     (ends, hkl, hk): (&[[u32; 2]], &[f64], &[f64]),
     soft: &[f64],
-    jam_hkl: &[f64],
+    jam: &JamRamps,
     first: usize,
 ) {
     for i in first..ends.len() {
@@ -558,7 +586,7 @@ fn springs_scalar(
             let len = len2.sqrt();
             let mut c = hkl[i] / len - hk[i];
             if c > 0.0 {
-                c = c * soft[i] + (jam_hkl[i] / len - hk[i]).max(0.0);
+                c = c * soft[i] + hk[i] * jam.push(i, len) / len;
             }
             let f = d * c;
             r[a] += f;
@@ -584,16 +612,21 @@ unsafe fn springs_avx2(
     hkl: &[f64],
     hk: &[f64],
     soft: &[f64],
-    jam_hkl: &[f64],
+    jam: &JamRamps,
 ) -> usize {
     use std::arch::x86_64::*;
     let quads = ends.len() / 4;
-    let (ends, hkl, hk, soft, jam_hkl) = (
+    let (ends, hkl, hk, soft) = (
         &ends[..4 * quads],
         &hkl[..4 * quads],
         &hk[..4 * quads],
         &soft[..4 * quads],
-        &jam_hkl[..4 * quads],
+    );
+    let (jam_rest, jam_lo, jam_width, jam_inv) = (
+        &jam.rest[..4 * quads],
+        &jam.lo[..4 * quads],
+        &jam.width[..4 * quads],
+        &jam.inv[..4 * quads],
     );
     debug_assert!(x.len() == r.len());
     debug_assert!(ends.iter().flatten().all(|&i| (i as usize) < x.len()));
@@ -620,15 +653,19 @@ unsafe fn springs_avx2(
                 hkq,
             );
             // Compressed springs (c > 0) push with kc instead of k, c·(kc/k), plus the jammed
-            // push max(0, jam_hkl/|d| − h²k).
+            // push h²k·JamRamps::push/|d|, in the scalar code's order.
             let compressed = _mm256_cmp_pd(c, _mm256_setzero_pd(), _CMP_GT_OQ);
-            let jam = _mm256_max_pd(
-                _mm256_sub_pd(
-                    _mm256_div_pd(_mm256_loadu_pd(jam_hkl.as_ptr().add(4 * q)), len),
-                    hkq,
-                ),
+            let load = |v: &[f64]| _mm256_loadu_pd(v.as_ptr().add(4 * q));
+            let a = _mm256_max_pd(
+                _mm256_sub_pd(_mm256_sub_pd(load(jam_rest), len), load(jam_lo)),
                 _mm256_setzero_pd(),
             );
+            let m = _mm256_min_pd(a, load(jam_width));
+            let push = _mm256_add_pd(
+                _mm256_mul_pd(_mm256_mul_pd(m, m), load(jam_inv)),
+                _mm256_sub_pd(a, m),
+            );
+            let jam = _mm256_div_pd(_mm256_mul_pd(hkq, push), len);
             let c = _mm256_blendv_pd(
                 c,
                 _mm256_add_pd(
@@ -1074,9 +1111,22 @@ mod tests {
         let hk: Vec<f64> = (0..ends.len()).map(|i| 0.3 + 0.02 * i as f64).collect();
         // Compression stiffness ratios from 0 to 1 (both branches of the blend are taken).
         let soft: Vec<f64> = (0..ends.len()).map(|i| (i % 5) as f64 / 4.0).collect();
-        let jam: Vec<f64> = (0..ends.len())
-            .map(|i| hkl[i] * (i % 3) as f64 * 0.4)
-            .collect();
+        // Springs that jam (kc < k) at 30 % compression, with lengths before, on and past
+        // their ramps.
+        let rest: Vec<f64> = hkl.iter().zip(&hk).map(|(a, b)| a / b).collect();
+        let k = vec![1.0; ends.len()];
+        let jam = JamRamps::new(&rest, &k, &soft, 0.3);
+        let regions = |lo: f64, hi: f64| {
+            (0..ends.len())
+                .filter(|&i| {
+                    let [a, b] = ends[i];
+                    let len = (x[a as usize] - x[b as usize]).xyz().length();
+                    let t = (rest[i] - len) / rest[i];
+                    soft[i] < 1.0 && t > lo && t < hi
+                })
+                .count()
+        };
+        assert!(regions(0.0, 0.225) > 0 && regions(0.225, 0.375) > 0 && regions(0.375, 1.0) > 0);
         let mut want = vec![Lanes4::from_vec3(DVec3::new(0.5, -0.25, 1.0)); n];
         let mut got = want.clone();
         let springs = (&ends[..], &hkl[..], &hk[..]);

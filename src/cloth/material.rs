@@ -39,8 +39,9 @@ pub struct Material {
     /// Stiffness in compression as a fraction of the stiffness in tension (0..=1).
     pub compression: f64,
     /// Jamming strain J: the compression strain (a fraction of the rest length, 0 < J < 1)
-    /// past which an edge that is softer in compression resists with its full tension stiffness
-    /// added back, as yarns pressed together do. Default [`DEFAULT_JAM_STRAIN`].
+    /// around which an edge that is softer in compression gets its full tension stiffness added
+    /// back, along a ramp from (1 − [`super::system::JAM_RAMP`])·J to (1 + JAM_RAMP)·J, as yarns
+    /// pressed together do. Default [`DEFAULT_JAM_STRAIN`].
     pub jam_strain: f64,
     /// Bending rigidity B, N·m.
     pub bend: f64,
@@ -123,13 +124,14 @@ impl MaterialPreset {
 pub const FABRIC_COMPRESSION: f64 = 0.001;
 
 /// The default jamming strain of every preset ([`Material::jam_strain`], `--jam-strain`): a
-/// fabric edge compressed by more than 9 % of its length resists with its tension stiffness.
-/// A jammed edge settles a little past J under load, so J sits below the 10 % a garment's edges
-/// must stay within: on the character demos the most compressed free edges settle at 9.06 %
-/// (robot skirt) and 9.18 % (cape) at J = 9 %, at 10.05 % and 10.1 % at J = 10 %. Lower is not
-/// better: at 8 % the robot skirt needs 22 % more Newton iterations than at 10 % and leaves more
-/// steps above the tolerance (6 of 216, worst ρ 15.6, against 4 of 216, 1.9).
-pub const DEFAULT_JAM_STRAIN: f64 = 0.09;
+/// fabric edge compressed by about 8 % of its length resists with its tension stiffness, added
+/// back along a ramp from 4 % to 12 % ([`super::system::JAM_RAMP`]). Chosen by measurement on the
+/// 8k-vertex skirt hanging from its waist, 30 frames, Newton to ρ ≤ 0.1 (`docs/performance.md`):
+/// J = 8 % ± 4 % took 466 Newton iterations with every edge within 6.5 %, against 645 and 9.4 %
+/// for the former sharp 9 % jam; 7 % ± 3.5 % took 493 (5.9 %), 10 % ± 5 % 501 (7.6 %), and a
+/// sharp or narrower ramp more (8 % ± 1.5 %: 499, 8.0 %), as did a ramp from zero (8 % ± 8 %:
+/// 595).
+pub const DEFAULT_JAM_STRAIN: f64 = 0.08;
 
 /// The default material (`cotton`).
 pub const DEFAULT_MATERIAL: MaterialPreset = MaterialPreset::Cotton;

@@ -127,6 +127,9 @@ pub struct NewtonSolver {
     x0: Vec<DVec3>,
     /// Relative residual at the start of each iteration of the last step (and the final one).
     history: Option<Vec<f64>>,
+    /// The line search's step length in each iteration of the last step (recorded with
+    /// `history`).
+    step_lengths: Option<Vec<f64>>,
     /// Time steps taken (for error messages).
     steps: usize,
     /// Contact constraints and friction, when there are colliders.
@@ -260,6 +263,7 @@ impl NewtonSolver {
             y: vec![DVec3::ZERO; n],
             x0: vec![DVec3::ZERO; n],
             history: None,
+            step_lengths: None,
             steps: 0,
             contact: None,
             held: vec![None; n],
@@ -380,14 +384,22 @@ impl NewtonSolver {
     }
 
     /// Records the relative residual at every Newton iterate of each step (the starting point
-    /// included), readable with [`NewtonSolver::history`].
+    /// included) and the line search's step lengths, readable with [`NewtonSolver::history`]
+    /// and [`NewtonSolver::step_lengths`].
     pub fn record_history(&mut self, on: bool) {
         self.history = on.then(Vec::new);
+        self.step_lengths = on.then(Vec::new);
     }
 
     /// Relative residuals ‖∇g‖/force scale at each iterate of the last step, first to last.
     pub fn history(&self) -> Option<&[f64]> {
         self.history.as_deref()
+    }
+
+    /// The step length α (a fraction of the Newton direction, 1 = the full step) the line
+    /// search took in each iteration of the last step.
+    pub fn step_lengths(&self) -> Option<&[f64]> {
+        self.step_lengths.as_deref()
     }
 
     /// Stored entries of the Hessian's upper triangle.
@@ -669,6 +681,9 @@ impl StepSolver for NewtonSolver {
         if let Some(hist) = &mut self.history {
             hist.clear();
         }
+        if let Some(steps) = &mut self.step_lengths {
+            steps.clear();
+        }
         let mut iterations = 0;
         let (residual, converged) = loop {
             self.assemble(x);
@@ -717,6 +732,9 @@ impl StepSolver for NewtonSolver {
                     break;
                 }
                 alpha *= 0.5;
+            }
+            if let Some(steps) = &mut self.step_lengths {
+                steps.push(alpha);
             }
             x.copy_from_slice(&trial);
             self.trial = trial;

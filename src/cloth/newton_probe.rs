@@ -5,6 +5,10 @@
 //!     cargo test --release --lib newton::probe -- --ignored --nocapture
 //! ```
 //!
+//! Other knobs: `PROBE_PIN` (a `--pin` spec), `PROBE_SHAPE` (a `--collider` spec instead of a
+//! mesh), `PROBE_JAM`, `PROBE_SUBSTEPS`, `PROBE_BEND`, `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`;
+//! every step also prints the line search's step lengths α.
+//!
 //! Prints the mesh's flaws, the springs' and bending stencils' stiffness spread, how many
 //! particles start within the collision thickness, and per step the residual at every Newton
 //! iterate and the largest stretch and compression.
@@ -74,7 +78,9 @@ fn probe() {
     let steps: usize = env("PROBE_STEPS", 3);
     let cap: usize = env("PROBE_CAP", 50);
     let mut job = ClothJob::new(ClothSource::File(root.join(&mesh)), "unused.glb".into());
-    if collider != "none" {
+    if let Ok(shape) = std::env::var("PROBE_SHAPE") {
+        job.collider = vec![shape.parse().unwrap()];
+    } else if collider != "none" {
         job.collider = vec![ColliderSpec::mesh(root.join(&collider))];
     }
     if let Ok(b) = std::env::var("PROBE_BEND") {
@@ -82,6 +88,15 @@ fn probe() {
     }
     if let Ok(t) = std::env::var("PROBE_THICKNESS") {
         job.thickness = Some(t.parse().unwrap());
+    }
+    if let Ok(p) = std::env::var("PROBE_PIN") {
+        job.pin = vec![p.parse().unwrap()];
+    }
+    if let Ok(n) = std::env::var("PROBE_SUBSTEPS") {
+        job.substeps = n.parse().unwrap();
+    }
+    if let Ok(j) = std::env::var("PROBE_JAM") {
+        job.jam_strain = Some(j.parse().unwrap());
     }
     job.frames = Some(steps);
     job.friction = env("PROBE_FRICTION", job.friction);
@@ -177,10 +192,17 @@ fn probe() {
             .iter()
             .map(|r| format!("{r:.2e}"))
             .collect();
+        let alphas: Vec<String> = solver
+            .step_lengths()
+            .unwrap()
+            .iter()
+            .map(|a| format!("{a:.3}"))
+            .collect();
         println!(
-            "step {step}: {stats:?} {:.2} s\n  ρ: {}",
+            "step {step}: {stats:?} {:.2} s\n  ρ: {}\n  α: {}",
             t0.elapsed().as_secs_f64(),
-            hist.join(" ")
+            hist.join(" "),
+            alphas.join(" ")
         );
         report_terms(&solver, &x, &fl);
         // Strain.
