@@ -70,6 +70,8 @@ params! {
     Compression => "compression",
     /// A fabric's jamming strain.
     JamStrain => "jam_strain",
+    /// The rest shape of a fabric's bending.
+    BendRest => "bend_rest",
     /// The labs' spring stiffness.
     Stiffness => "stiffness",
     /// The labs' bending-spring stiffness.

@@ -15,7 +15,8 @@ use scenebake::glam::DVec3;
 
 /// ρ = ‖∇g‖ / ‖M·g‖ over the free particles for the step from (x₋₂, x₋₁) to x, evaluated from
 /// the model's springs, bending stencils and masses with this file's own formulas:
-/// ∇g = s·m/h²·(x − y) + Σ k(|r| − l)·r/|r| + Σ wᵢ(Σ wⱼxⱼ), y = x₋₁ + (h·v + h²·g)/s, springs
+/// ∇g = s·m/h²·(x − y) + Σ k(|r| − l)·r/|r| + Σ wᵢ(Σ wⱼxⱼ − target), y = x₋₁ + (h·v + h²·g)/s,
+/// the bending target the rest mesh's curvature turned by each hinge's frame at x₋₁, springs
 /// jamming around the compression strain `jam`: the tension stiffness adds back along a linear
 /// ramp from (1 − JAM_RAMP)·jam to (1 + JAM_RAMP)·jam. Also returns how many springs are on or
 /// past their ramp.
@@ -68,10 +69,26 @@ fn recomputed_residual(
         grad[a] += f;
         grad[b] -= f;
     }
+    // The curved rest: Σ wᵢ xᵢ of the rest mesh in the hinge's frame (unit edge t, the normal
+    // n ∝ t × (x_o0 − x_o1), t × n), turned by the frame at the step's start.
+    let frame = |p: [DVec3; 4]| {
+        let t = (p[1] - p[0]).normalize();
+        let n = t.cross(p[2] - p[3]).normalize();
+        [t, n, t.cross(n)]
+    };
+    let rest = &m.mesh.positions;
     for st in &m.bending {
+        let corners = |x: &[DVec3]| st.vertices.map(|v| x[v as usize]);
+        let at_rest: DVec3 = (0..4)
+            .map(|i| rest[st.vertices[i] as usize] * st.weights[i])
+            .sum();
+        let [t0, n0, b0] = frame(corners(rest));
+        let [t, n, b] = frame(corners(xm1));
+        let target = t * at_rest.dot(t0) + n * at_rest.dot(n0) + b * at_rest.dot(b0);
         let sum: DVec3 = (0..4)
             .map(|i| x[st.vertices[i] as usize] * st.weights[i])
-            .sum();
+            .sum::<DVec3>()
+            - target;
         for i in 0..4 {
             grad[st.vertices[i] as usize] += sum * st.weights[i];
         }

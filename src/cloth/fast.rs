@@ -866,6 +866,7 @@ impl StepSolver for FastSolver {
 
     fn step(&mut self, x: &mut [DVec3], v: &mut [DVec3]) -> Result<StepStats> {
         let h = self.sys.params.time_step;
+        self.sys.orient_bending(x);
         self.x0.copy_from_slice(x);
         // y goes through `x` (its DVec3 scratch) into the padded layout; the first iterate is y.
         self.sys.predict(&self.x0, v, x);

@@ -45,8 +45,27 @@ pub struct Material {
     pub jam_strain: f64,
     /// Bending rigidity B, N·m.
     pub bend: f64,
+    /// The shape bending returns to: flat, or the input mesh's own curvature. Default
+    /// [`BendRest::Mesh`].
+    pub bend_rest: BendRest,
     /// Areal density ρ, kg/m².
     pub density: f64,
+}
+
+/// The rest shape of the bending energy (`--bend-rest`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum BendRest {
+    // (The variants' doc comments are `--help` text.)
+    /// The input mesh's own curvature: a garment modelled draped keeps its folds, as Blender's
+    /// cloth keeps its rest angles (each hinge's rest value Σwᵢxᵢ, kept in the hinge's own frame
+    /// and turned with it)
+    #[default]
+    Mesh,
+    /// Flat: each hinge's energy ½|Σwᵢxᵢ|² is zero only when it is flat (the quadratic model of
+    /// Bergou et al. 2006, the behaviour before this option)
+    Flat,
 }
 
 /// The named fabrics of `--material`.
@@ -115,6 +134,7 @@ impl MaterialPreset {
             compression,
             jam_strain: DEFAULT_JAM_STRAIN,
             bend,
+            bend_rest: BendRest::default(),
             density,
         }
     }
@@ -144,6 +164,26 @@ pub struct BendStencil {
     pub vertices: [u32; 4],
     /// Weights, √(N/m) (so that ½|Σ wᵢxᵢ|² is in joules).
     pub weights: [f64; 4],
+    /// The rest value Σwᵢxᵢ of the input mesh in the hinge's frame ([`hinge_frame`]: edge,
+    /// normal, binormal), √(N/m)·m; zero for a flat rest. The energy is ½|Σwᵢxᵢ − F·rest|² with
+    /// F the hinge's frame.
+    pub rest: DVec3,
+}
+
+/// The frame of a hinge with edge (p0, p1) and opposite vertices p2, p3: the unit edge
+/// t = (p1 − p0)/|p1 − p0|, the normal n = t × (p2 − p3) normalised (the two triangles' mean
+/// normal: p2 and p3 lie on either side of the edge), and t × n; `None` when degenerate
+/// (a zero-length edge, or a hinge folded shut).
+pub fn hinge_frame(p: [DVec3; 4]) -> Option<[DVec3; 3]> {
+    let t = (p[1] - p[0]).try_normalize()?;
+    let n = t.cross(p[2] - p[3]).try_normalize()?;
+    Some([t, n, t.cross(n)])
+}
+
+/// The world vector F·c of frame-coordinates `c` (none: zero).
+#[inline]
+pub fn from_frame(frame: Option<[DVec3; 3]>, c: DVec3) -> DVec3 {
+    frame.map_or(DVec3::ZERO, |[t, n, b]| t * c.x + n * c.y + b * c.z)
 }
 
 /// The springs and bending stencils of `material` on a triangle mesh.
@@ -194,7 +234,14 @@ pub fn fabric_model_terms(mesh: &Mesh, material: &Material) -> FabricTerms {
         }
         if material.bend > 0.0 {
             if let [c, d] = opposite[..] {
-                if let Some(s) = bend_stencil([a, b, c, d], p, material.bend) {
+                if let Some(mut s) = bend_stencil([a, b, c, d], p, material.bend) {
+                    if material.bend_rest == BendRest::Mesh {
+                        let x = s.vertices.map(|i| p[i as usize]);
+                        let value: DVec3 = (0..4).map(|i| x[i] * s.weights[i]).sum();
+                        if let Some([t, n, b]) = hinge_frame(x) {
+                            s.rest = DVec3::new(value.dot(t), value.dot(n), value.dot(b));
+                        }
+                    }
                     bending.push(s);
                 }
             }
@@ -224,17 +271,19 @@ fn bend_stencil(v: [u32; 4], p: &[DVec3], bend: f64) -> Option<BendStencil> {
     Some(BendStencil {
         vertices: v,
         weights: k.map(|w| w * scale),
+        rest: DVec3::ZERO,
     })
 }
 
-/// The bending energy of `stencils` at positions `x`, joules.
+/// The bending energy of `stencils` at positions `x`, joules: ½|Σwᵢxᵢ − F·rest|² per hinge,
+/// with F the hinge's frame at `x`.
 pub fn bending_energy(stencils: &[BendStencil], x: &[DVec3]) -> f64 {
     stencils
         .iter()
         .map(|s| {
-            let v: DVec3 = (0..4)
-                .map(|i| x[s.vertices[i] as usize] * s.weights[i])
-                .sum();
+            let p = s.vertices.map(|i| x[i as usize]);
+            let v: DVec3 = (0..4).map(|i| p[i] * s.weights[i]).sum::<DVec3>()
+                - from_frame(hinge_frame(p), s.rest);
             0.5 * v.length_squared()
         })
         .sum()
@@ -300,6 +349,7 @@ mod tests {
             compression: 1.0,
             jam_strain: DEFAULT_JAM_STRAIN,
             bend: 0.0,
+            bend_rest: BendRest::Mesh,
             density: 0.2,
         };
         let eps = 0.01;
@@ -337,6 +387,7 @@ mod tests {
             compression: 1.0,
             jam_strain: DEFAULT_JAM_STRAIN,
             bend,
+            bend_rest: BendRest::Mesh,
             density: 0.2,
         };
         for (cells, jitter) in [(30, 0.0), (60, 0.2)] {
@@ -361,6 +412,49 @@ mod tests {
             // Flat: no bending energy at all (the weights are a discrete Laplacian).
             assert!(bending_energy(&terms.bending, &mesh.positions) < 1e-12 * closed);
         }
+    }
+
+    /// A sheet modelled rolled (radius 0.5 m) keeps its curvature with the mesh rest: no energy
+    /// at rest or turned and moved rigidly, and unrolling it flat costs what rolling a flat sheet
+    /// costs (the closed form ½·B/R² per unit area); with the flat rest it costs that as it is.
+    #[test]
+    fn a_curved_rest_is_kept_and_turns_with_the_hinge() {
+        let bend = 2e-5;
+        let radius = 0.5;
+        let closed = bend / (2.0 * radius * radius) * 1.0;
+        let flat = grid(40, 1.0, 0.2);
+        let mut rolled = flat.clone();
+        for p in &mut rolled.positions {
+            let t = p.x / radius;
+            *p = DVec3::new(radius * t.sin(), radius * (1.0 - t.cos()), p.z);
+        }
+        let material = |bend_rest| Material {
+            stretch: 100.0,
+            compression: 1.0,
+            jam_strain: DEFAULT_JAM_STRAIN,
+            bend,
+            bend_rest,
+            density: 0.2,
+        };
+        let kept = fabric_model_terms(&rolled, &material(BendRest::Mesh)).bending;
+        assert!(kept.iter().all(|s| s.rest.length() > 0.0));
+        assert!(bending_energy(&kept, &rolled.positions) < 1e-12 * closed);
+        let q = glam::DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 1.1);
+        let turned: Vec<DVec3> = rolled
+            .positions
+            .iter()
+            .map(|p| q * *p + DVec3::new(0.3, -2.0, 5.0))
+            .collect();
+        assert!(bending_energy(&kept, &turned) < 1e-12 * closed);
+        let e = bending_energy(&kept, &flat.positions);
+        assert!((e / closed - 1.0).abs() < 0.05, "unrolled: {e} vs {closed}");
+        let flat_rest = fabric_model_terms(&rolled, &material(BendRest::Flat)).bending;
+        assert!(flat_rest.iter().all(|s| s.rest == DVec3::ZERO));
+        let e = bending_energy(&flat_rest, &rolled.positions);
+        assert!(
+            (e / closed - 1.0).abs() < 0.05,
+            "flat rest: {e} vs {closed}"
+        );
     }
 
     #[test]

@@ -644,6 +644,7 @@ impl StepSolver for NewtonSolver {
     fn step(&mut self, x: &mut [DVec3], v: &mut [DVec3]) -> Result<StepStats> {
         let h = self.sys.params.time_step;
         let scale = self.sys.force_scale();
+        self.sys.orient_bending(x);
         self.x0.copy_from_slice(x);
         if let Some(c) = &mut self.contact {
             c.begin_step(x);

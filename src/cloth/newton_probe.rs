@@ -6,7 +6,7 @@
 //! ```
 //!
 //! Other knobs: `PROBE_PIN` (a `--pin` spec), `PROBE_SHAPE` (a `--collider` spec instead of a
-//! mesh), `PROBE_JAM`, `PROBE_SUBSTEPS`, `PROBE_BEND`, `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`;
+//! mesh), `PROBE_JAM`, `PROBE_BEND_REST`, `PROBE_SUBSTEPS`, `PROBE_BEND`, `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`;
 //! every step also prints the line search's step lengths α.
 //!
 //! Prints the mesh's flaws, the springs' and bending stencils' stiffness spread, how many
@@ -94,6 +94,13 @@ fn probe() {
     }
     if let Ok(n) = std::env::var("PROBE_SUBSTEPS") {
         job.substeps = n.parse().unwrap();
+    }
+    if let Ok(r) = std::env::var("PROBE_BEND_REST") {
+        job.bend_rest = Some(if r == "flat" {
+            crate::cloth::material::BendRest::Flat
+        } else {
+            crate::cloth::material::BendRest::Mesh
+        });
     }
     if let Ok(j) = std::env::var("PROBE_JAM") {
         job.jam_strain = Some(j.parse().unwrap());

@@ -17,6 +17,7 @@
 use glam::DVec3;
 
 use super::factor::fill_reducing_order;
+use super::material::{from_frame, hinge_frame};
 use super::model::ClothModel;
 use crate::error::Result;
 
@@ -64,17 +65,31 @@ pub struct Anchors {
 }
 
 /// Quadratic bending stencils on the free particles (see [`super::material`]): energy
-/// ½·|Σᵢ wᵢ xᵢ + fixed|² each, pinned vertices folded into `fixed`.
+/// ½·|Σᵢ wᵢ xᵢ + fixed|² each, pinned vertices and the rest shape folded into `fixed`.
+///
+/// A curved rest ([`super::material::BendRest::Mesh`]) is the stencil's rest value in its
+/// hinge's frame, turned into the world by the frame at the start of each step
+/// ([`ReducedSystem::orient_bending`]): within a step the target is a constant, so the energy
+/// stays quadratic with the same constant Hessian, and a hinge that turns rigidly between steps
+/// carries its rest shape along.
 #[derive(Debug, Clone, Default)]
 pub struct FreeBends {
     /// Solver index of each vertex, [`PINNED`] where it is pinned (its weight is then zero).
     pub v: Vec<[u32; 4]>,
     /// Weights, √(N/m).
     pub w: Vec<[f64; 4]>,
-    /// Σ wᵢ xᵢ over the pinned vertices.
+    /// Σ wᵢ xᵢ over the pinned vertices, less the rest target, √(N/m)·m.
     pub fixed: Vec<DVec3>,
     /// (stencil, pinned particle in model order, weight) of every pinned vertex in `fixed`.
     pub fixed_terms: Vec<(u32, u32, f64)>,
+    /// Model index of each vertex (for the hinge's frame).
+    pub corners: Vec<[u32; 4]>,
+    /// The rest value in the hinge's frame ([`super::material::BendStencil::rest`]).
+    pub rest: Vec<DVec3>,
+    /// The rest target in the world for the current step.
+    pub target: Vec<DVec3>,
+    /// Σ wᵢ xᵢ over the pinned vertices.
+    pub pinned_sum: Vec<DVec3>,
 }
 
 /// The solver index [`FreeBends`] gives a pinned vertex.
@@ -131,6 +146,12 @@ pub struct ReducedSystem {
     /// Compression strain past which a spring softer in compression jams (a fraction of its rest
     /// length; [`ClothModel::jam_strain`]).
     pub jam_strain: f64,
+    /// Solver index of each model particle ([`PINNED`] where pinned); kept only when a bending
+    /// stencil has a curved rest (empty otherwise).
+    solver_of: Vec<u32>,
+    /// Model-ordered positions whose pinned entries are where the pins are, m; kept only with a
+    /// curved rest.
+    pinned_at: Vec<DVec3>,
 }
 
 impl ReducedSystem {
@@ -206,18 +227,33 @@ impl ReducedSystem {
                 }
             }
             if v.iter().any(|&i| i != PINNED) {
+                let target = from_frame(
+                    hinge_frame(st.vertices.map(|i| model.mesh.positions[i as usize])),
+                    st.rest,
+                );
                 bends.v.push(v);
                 bends.w.push(w);
-                bends.fixed.push(fixed);
+                bends.fixed.push(fixed - target);
                 bends.fixed_terms.extend(terms);
+                bends.corners.push(st.vertices);
+                bends.rest.push(st.rest);
+                bends.target.push(target);
+                bends.pinned_sum.push(fixed);
             }
         }
         let mass = particle_of
             .iter()
             .map(|&p| model.mass[p as usize])
             .collect();
+        let curved = bends.rest.iter().any(|r| *r != DVec3::ZERO);
         Ok(ReducedSystem {
             params,
+            solver_of: if curved { solver_of } else { Vec::new() },
+            pinned_at: if curved {
+                model.mesh.positions.clone()
+            } else {
+                Vec::new()
+            },
             particle_of,
             mass,
             springs,
@@ -250,11 +286,39 @@ impl ReducedSystem {
         for (at, &p) in self.anchors.at.iter_mut().zip(&self.anchors.pinned) {
             *at = all[p as usize];
         }
-        for f in &mut self.bends.fixed {
+        let b = &mut self.bends;
+        for f in &mut b.pinned_sum {
             *f = DVec3::ZERO;
         }
-        for &(s, p, w) in &self.bends.fixed_terms {
-            self.bends.fixed[s as usize] += all[p as usize] * w;
+        for &(s, p, w) in &b.fixed_terms {
+            b.pinned_sum[s as usize] += all[p as usize] * w;
+            if let Some(at) = self.pinned_at.get_mut(p as usize) {
+                *at = all[p as usize];
+            }
+        }
+        for ((f, p), t) in b.fixed.iter_mut().zip(&b.pinned_sum).zip(&b.target) {
+            *f = *p - *t;
+        }
+    }
+
+    /// Turns the curved rest shape of every bending stencil into the world by its hinge's frame
+    /// at `x` (solver order; pinned corners where the pins are): called by the solvers at the
+    /// start of each step. A no-op for a flat rest.
+    pub fn orient_bending(&mut self, x: &[DVec3]) {
+        if self.solver_of.is_empty() {
+            return;
+        }
+        let b = &mut self.bends;
+        for s in 0..b.v.len() {
+            if b.rest[s] == DVec3::ZERO {
+                continue;
+            }
+            let p = b.corners[s].map(|m| match self.solver_of[m as usize] {
+                PINNED => self.pinned_at[m as usize],
+                i => x[i as usize],
+            });
+            b.target[s] = from_frame(hinge_frame(p), b.rest[s]);
+            b.fixed[s] = b.pinned_sum[s] - b.target[s];
         }
     }
 

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use glam::DVec3;
 
 use crate::cloth::collide::{ColliderSpec, DEFAULT_FRICTION};
-use crate::cloth::material::MaterialPreset;
+use crate::cloth::material::{BendRest, MaterialPreset};
 use crate::cloth::pins::PinSpec;
 use crate::cloth::SolverKind;
 use crate::error::{Error, Result};
@@ -176,11 +176,17 @@ pub struct ClothJob {
     /// The fabric's compression stiffness as a fraction of its stretch stiffness (0..1).
     #[cfg_attr(feature = "cli", arg(long, value_name = "FRACTION"))]
     pub compression: Option<f64>,
-    /// The fabric's jamming strain: past this compression (a fraction of an edge's rest length,
-    /// between 0 and 1) an edge resists with its full stretch stiffness again [default: 0.09].
+    /// The fabric's jamming strain J: around this compression (a fraction of an edge's rest
+    /// length, between 0 and 1) an edge resists with its full stretch stiffness again, added
+    /// along a ramp from J/2 to 3J/2 [default: 0.08].
     #[cfg_attr(feature = "cli", arg(long, value_name = "STRAIN"))]
     #[serde(alias = "jam-strain")]
     pub jam_strain: Option<f64>,
+    /// The shape the fabric's bending returns to: `mesh`, the input's own curvature (a garment
+    /// modelled draped keeps its folds, as in Blender's cloth), or `flat` [default: mesh].
+    #[cfg_attr(feature = "cli", arg(long, value_enum, value_name = "REST"))]
+    #[serde(alias = "bend-rest")]
+    pub bend_rest: Option<BendRest>,
     /// Every spring's stiffness in N/m, symmetric in tension and compression: the labs' model
     /// instead of a material [lab-cloth 100; .tet 1000].
     #[cfg_attr(feature = "cli", arg(long, value_name = "K"))]
@@ -421,6 +427,7 @@ impl Default for ClothJob {
             bend: None,
             compression: None,
             jam_strain: None,
+            bend_rest: None,
             stiffness: None,
             bend_stiffness: None,
             damping: None,

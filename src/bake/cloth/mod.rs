@@ -111,6 +111,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         (Param::Bend, job.bend.is_some()),
         (Param::Compression, job.compression.is_some()),
         (Param::JamStrain, job.jam_strain.is_some()),
+        (Param::BendRest, job.bend_rest.is_some()),
     ]
     .into_iter()
     .find_map(|(name, given)| given.then_some(name));
@@ -356,6 +357,9 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
             ));
         }
         m.jam_strain = v;
+    }
+    if let Some(r) = job.bend_rest {
+        m.bend_rest = r;
     }
     if let Some(d) = job.density {
         m.density = positive(Param::Density, d)?;
