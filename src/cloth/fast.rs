@@ -568,7 +568,7 @@ impl JamRamps {
 /// The springs' part of [`FastSolver::residual_step`] from spring `first` on: h²k·(l/|d| − 1)·d
 /// added to end a and subtracted from end b (d = xa − xb; coincident ends pull nothing), scaled
 /// by `soft` = kc/k where the spring is compressed (l/|d| > 1), plus the jammed push
-/// h²k·[`JamRamps::push`](l − |d|)/|d|·d.
+/// h²k·p/|d|·d with p = [`JamRamps::push`] at |d|.
 fn springs_scalar(
     x: &[Lanes4],
     r: &mut [Lanes4],
