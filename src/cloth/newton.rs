@@ -74,10 +74,12 @@ const MAX_HALVINGS: usize = 30;
 /// terms, so its own size bounds the roundoff of its evaluation).
 const ROUNDOFF: f64 = 1e-12;
 
-/// The numeric factorisation's parallelism: rayon's pool (every core; the supernodes' dense
-/// updates split between threads).
+/// The numeric factorisation's parallelism: one thread. faer's rayon pool on both cores of our
+/// machines made the factor 1.2–1.8× slower (criterion, Newton's factor: 108 → 59 ms on the
+/// 100×100 lab grid, 586 → 494 ms on 200×200, 162 → 106 ms on tableCloth), its threads waking and
+/// yielding more than they computed (perf: ~40 % of the time in the scheduler).
 fn factor_par() -> Par {
-    Par::rayon(0)
+    Par::Seq
 }
 
 /// The vertex pairs of a bending stencil, in the order of [`NewtonSolver`]'s `bend_off`.
