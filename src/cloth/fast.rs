@@ -744,7 +744,7 @@ fn apply_matrix(
 fn bend_product(bends: &FreeBends, c: f64, p: &[Lanes4], fixed: bool, out: &mut [Lanes4]) {
     for s in 0..bends.len() {
         let (v, w) = (&bends.v[s], &bends.w[s]);
-        let mut sum = if fixed { bends.fixed[s] } else { DVec3::ZERO };
+        let mut sum = if fixed { bends.fixed(s) } else { DVec3::ZERO };
         for i in 0..4 {
             if v[i] != PINNED {
                 sum += p[v[i] as usize].xyz() * w[i];

@@ -6,8 +6,9 @@
 //! ```
 //!
 //! Other knobs: `PROBE_PIN` (a `--pin` spec), `PROBE_SHAPE` (a `--collider` spec instead of a
-//! mesh), `PROBE_JAM`, `PROBE_BEND_REST`, `PROBE_SUBSTEPS`, `PROBE_BEND`, `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`;
-//! every step also prints the line search's step lengths α.
+//! mesh), `PROBE_JAM`, `PROBE_BEND_REST` (`flat` or `mesh`), `PROBE_SUBSTEPS`, `PROBE_BEND`,
+//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`; every step also prints the line search's
+//! step lengths α.
 //!
 //! Prints the mesh's flaws, the springs' and bending stencils' stiffness spread, how many
 //! particles start within the collision thickness, and per step the residual at every Newton
@@ -96,10 +97,11 @@ fn probe() {
         job.substeps = n.parse().unwrap();
     }
     if let Ok(r) = std::env::var("PROBE_BEND_REST") {
+        use crate::cloth::material::BendRest;
         job.bend_rest = Some(if r == "flat" {
-            crate::cloth::material::BendRest::Flat
+            BendRest::Flat
         } else {
-            crate::cloth::material::BendRest::Mesh
+            BendRest::Mesh
         });
     }
     if let Ok(j) = std::env::var("PROBE_JAM") {
@@ -193,23 +195,14 @@ fn probe() {
     for step in 1..=steps {
         let t0 = std::time::Instant::now();
         let stats = solver.step(&mut x, &mut v).unwrap();
-        let hist: Vec<String> = solver
-            .history()
-            .unwrap()
-            .iter()
-            .map(|r| format!("{r:.2e}"))
-            .collect();
-        let alphas: Vec<String> = solver
-            .step_lengths()
-            .unwrap()
-            .iter()
-            .map(|a| format!("{a:.3}"))
-            .collect();
+        let joined = |v: Option<&[f64]>, f: fn(&f64) -> String| {
+            v.unwrap().iter().map(f).collect::<Vec<_>>().join(" ")
+        };
         println!(
             "step {step}: {stats:?} {:.2} s\n  ρ: {}\n  α: {}",
             t0.elapsed().as_secs_f64(),
-            hist.join(" "),
-            alphas.join(" ")
+            joined(solver.history(), |r| format!("{r:.2e}")),
+            joined(solver.step_lengths(), |a| format!("{a:.3}"))
         );
         report_terms(&solver, &x, &fl);
         // Strain.

@@ -65,7 +65,8 @@ pub struct Anchors {
 }
 
 /// Quadratic bending stencils on the free particles (see [`super::material`]): energy
-/// ½·|Σᵢ wᵢ xᵢ + fixed|² each, pinned vertices and the rest shape folded into `fixed`.
+/// ½·|Σᵢ wᵢ xᵢ + fixed|² each, pinned vertices and the rest shape folded into
+/// [`FreeBends::fixed`].
 ///
 /// A curved rest ([`super::material::BendRest::Mesh`]) is the stencil's rest value in its
 /// hinge's frame, turned into the world by the frame at the start of each step
@@ -78,17 +79,16 @@ pub struct FreeBends {
     pub v: Vec<[u32; 4]>,
     /// Weights, √(N/m).
     pub w: Vec<[f64; 4]>,
-    /// Σ wᵢ xᵢ over the pinned vertices, less the rest target, √(N/m)·m.
-    pub fixed: Vec<DVec3>,
-    /// (stencil, pinned particle in model order, weight) of every pinned vertex in `fixed`.
+    /// (stencil, pinned particle in model order, weight) of every pinned vertex in
+    /// `pinned_sum`.
     pub fixed_terms: Vec<(u32, u32, f64)>,
     /// Model index of each vertex (for the hinge's frame).
     pub corners: Vec<[u32; 4]>,
     /// The rest value in the hinge's frame ([`super::material::BendStencil::rest`]).
     pub rest: Vec<DVec3>,
-    /// The rest target in the world for the current step.
+    /// The rest target in the world for the current step, √(N/m)·m.
     pub target: Vec<DVec3>,
-    /// Σ wᵢ xᵢ over the pinned vertices.
+    /// Σ wᵢ xᵢ over the pinned vertices, √(N/m)·m.
     pub pinned_sum: Vec<DVec3>,
 }
 
@@ -106,10 +106,17 @@ impl FreeBends {
         self.v.is_empty()
     }
 
+    /// The constant part of stencil `s`: Σ wᵢ xᵢ over its pinned vertices less its rest target,
+    /// √(N/m)·m.
+    #[inline]
+    pub fn fixed(&self, s: usize) -> DVec3 {
+        self.pinned_sum[s] - self.target[s]
+    }
+
     /// Σ wᵢ xᵢ + fixed of stencil `s` at `x`.
     #[inline]
     pub fn value(&self, s: usize, x: &[DVec3]) -> DVec3 {
-        let mut sum = self.fixed[s];
+        let mut sum = self.fixed(s);
         for (&v, &w) in self.v[s].iter().zip(&self.w[s]) {
             if v != PINNED {
                 sum += x[v as usize] * w;
@@ -233,7 +240,6 @@ impl ReducedSystem {
                 );
                 bends.v.push(v);
                 bends.w.push(w);
-                bends.fixed.push(fixed - target);
                 bends.fixed_terms.extend(terms);
                 bends.corners.push(st.vertices);
                 bends.rest.push(st.rest);
@@ -296,9 +302,6 @@ impl ReducedSystem {
                 *at = all[p as usize];
             }
         }
-        for ((f, p), t) in b.fixed.iter_mut().zip(&b.pinned_sum).zip(&b.target) {
-            *f = *p - *t;
-        }
     }
 
     /// Turns the curved rest shape of every bending stencil into the world by its hinge's frame
@@ -318,7 +321,6 @@ impl ReducedSystem {
                 i => x[i as usize],
             });
             b.target[s] = from_frame(hinge_frame(p), b.rest[s]);
-            b.fixed[s] = b.pinned_sum[s] - b.target[s];
         }
     }
 

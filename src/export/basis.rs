@@ -31,7 +31,8 @@
 //! base shape is far from any baked frame (it sits at the lowest coefficients), so any other base
 //! NORMAL (such as the best fit to the baked normals) shades every frame off by its offset, and
 //! normals equal to the face normals import flat. glTF morphs normals with the same weights as
-//! positions. In the *shared* layout each target's NORMAL delta `m_k` is fitted by least squares given the position weights: per vertex,
+//! positions. In the *shared* layout each target's NORMAL delta `m_k` is fitted by least
+//! squares given the position weights: per vertex,
 //! `min Σ_f |n_b + o + Σ_k w_fk m_k - n_f|²`, where `o` is the NORMAL of one more target,
 //! `normal_offset` (zero POSITION: a sparse accessor listing one zero; weight 1 in every frame): the offset from the base shape's
 //! normals to the best constant term, which Blender ignores (it drops NORMAL deltas) and engines
@@ -55,7 +56,8 @@
 //! slider range does not matter) carry them, after `normal_offset`. J is the smallest whose
 //! measured normal error is within [`CLAMP_MAX_DEGREES`] / [`CLAMP_MEAN_DEGREES`] of the shared
 //! f32 fit's (with the offset), at the coarsest of those precisions that meets it, and at most
-//! K, within `--max-targets` (64 targets in all without it). Of the three layouts (shared deltas without and with the
+//! K, within `--max-targets` (64 targets in all without it). Of the three layouts (shared
+//! deltas without and with the
 //! offset, normal targets), the file written is the smallest whose normal error is within
 //! those margins of the shared layout with the offset (that one when none is), within
 //! `--max-targets` (which counts every target). The report's `normal_targets` gives J.
@@ -1369,8 +1371,9 @@ fn fitted_normals(
     }
 }
 
-/// The *shared* layout: the `fitted` deltas as written, each position target carrying its own. Quantised, a target's deltas are
-/// int8 when every component fits in [-1, 1], and the others are int8 clamped when that raises
+/// The *shared* layout: the `fitted` deltas as written, each position target carrying its own.
+/// Quantised, a target's deltas are int8 when every component fits in [-1, 1], and the others
+/// are int8 clamped when that raises
 /// the measured normal error by at most [`CLAMP_MAX_DEGREES`] / [`CLAMP_MEAN_DEGREES`] (always
 /// with `--quantize on`), else f32.
 fn shared_normals(
