@@ -32,8 +32,9 @@
 //! Contact (see [`NewtonContact`]): a projected Newton method. At each iterate the particles
 //! resting on a collider whose gradient pushes them into it are held: their normal component is
 //! removed from the gradient (what remains is the residual, the removed part is the contact
-//! force) and from the Hessian (blocks Sᵢ H_ij Sⱼ, S = I − nnᵀ), and every trial point of the line
-//! search is projected back out of the colliders.
+//! force) and from the Hessian (blocks Sᵢ H_ij Sⱼ, S = I − nnᵀ), every trial point of the line
+//! search is projected back out of the colliders, and the held particles are settled back onto
+//! the surface they slid over (a slide along a curved surface's tangent plane lifts them off).
 //!
 //! Convergence: quadratic near the solution while no spring is compressed there. A compressed
 //! spring's clamped block is not the exact second derivative, so on crumpling cloth Newton falls
@@ -292,6 +293,23 @@ impl NewtonSolver {
         if let Some(c) = &self.contact {
             for (i, p) in x.iter_mut().enumerate() {
                 c.project(i, p);
+            }
+        }
+    }
+
+    /// Moves the particles held in this iteration back down onto their layers when they lifted
+    /// off by less than the thickness (no-op without colliders). The direction keeps a held
+    /// particle in its collider's tangent plane, which on a curved surface lifts it off by the
+    /// square of its slide over twice the radius: it would then no longer rest there at the
+    /// next iterate, be released, driven back in and clipped by the projection, round after
+    /// round.
+    fn settle(&self, x: &mut [DVec3]) {
+        if let Some(c) = &self.contact {
+            let reach = c.colliders().thickness;
+            for (i, (p, held)) in x.iter_mut().zip(&self.held).enumerate() {
+                if held.is_some() {
+                    c.settle(i, p, reach);
+                }
             }
         }
     }
@@ -730,6 +748,7 @@ impl StepSolver for NewtonSolver {
                     *t = *x + DVec3::from_slice(d) * alpha;
                 }
                 self.project(&mut trial);
+                self.settle(&mut trial);
                 let g = self.energy(&trial);
                 if g <= g0 + ARMIJO * alpha * slope + slack {
                     break;
@@ -767,6 +786,40 @@ mod tests {
 
     fn lab_system(n: u32) -> (ReducedSystem, Vec<DVec3>) {
         lab_system_pinned(n, true)
+    }
+
+    /// A particle resting on a ball that slides 1 cm along the tangent plane lifts off by
+    /// about (1 cm)²/(2(R + t)); settling puts it back at R + t from the centre (the layer),
+    /// and leaves one that is farther above it than the reach where it is.
+    #[test]
+    fn a_held_particle_sliding_over_a_ball_settles_back_onto_its_layer() {
+        use crate::cloth::collide::shapes::Ball;
+        let (sys, _) = lab_system(4);
+        let (centre, radius, t) = (DVec3::new(0.1, -0.2, 0.3), 0.3, 0.003);
+        let colliders = Colliders {
+            shapes: vec![Collider::Sphere(Ball { centre, radius })],
+            thickness: t,
+            friction: 0.3,
+        };
+        let mut contact = NewtonContact::new(colliders, &sys);
+        let on = centre + DVec3::Y * (radius + t);
+        contact.begin_step(&vec![on; sys.len()]);
+        let mut p = on + DVec3::X * 0.01;
+        let lift = p.distance(centre) - (radius + t);
+        assert!(
+            (lift - 0.01f64.powi(2) / (2.0 * (radius + t))).abs() < 1e-6,
+            "lift {lift}"
+        );
+        contact.settle(0, &mut p, t);
+        assert!(
+            (p.distance(centre) - (radius + t)).abs() < 1e-12,
+            "settled {} m from the centre, layer at {}",
+            p.distance(centre),
+            radius + t
+        );
+        let mut far = on + DVec3::Y * (1.5 * t);
+        contact.settle(0, &mut far, t);
+        assert_eq!(far, on + DVec3::Y * (1.5 * t));
     }
 
     fn lab_system_pinned(n: u32, pins: bool) -> (ReducedSystem, Vec<DVec3>) {

@@ -12,7 +12,8 @@
 //!   forces obeying Coulomb's law.
 //! - Newton keeps every particle at least the thickness from every collider as a constraint:
 //!   a projected Newton method holds the particles pushed into a collider along its normal and
-//!   moves the others, projecting whatever enters a collider back out; friction is a potential
+//!   moves the others, projecting whatever enters a collider back out and settling the held
+//!   ones back onto the surface they slid over; friction is a potential
 //!   built from the normal force and normal of the previous step (lagged, as in incremental
 //!   potential contact): μN·f(|slip|) with f quadratic below a slip of ε and linear above, so
 //!   static friction holds the particle and sliding costs μN per metre ([`NewtonContact`]).
@@ -308,6 +309,30 @@ impl NewtonContact {
                     .filter(|s| s.distance <= touch)
                     .map(|s| (j, s))
             })
+    }
+
+    /// Moves particle `i` at `p`, held on a collider, back down onto its layer when it is above
+    /// it by less than `reach` (m): a held particle sliding along a curved surface's tangent
+    /// plane lifts off it by the square of its slide over twice the radius.
+    #[inline]
+    pub fn settle(&self, i: usize, p: &mut DVec3, reach: f64) {
+        let above = self
+            .colliders
+            .shapes
+            .iter()
+            .enumerate()
+            .find_map(|(j, shape)| {
+                let x0 = self.from(i, j);
+                let layer = self.layer(i, j);
+                let touch = self.touch(layer);
+                shape
+                    .contact(*p, x0, self.reach(touch + reach, *p, x0))
+                    .filter(|s| s.distance <= touch + reach)
+                    .map(|s| (s, layer))
+            });
+        if let Some((s, layer)) = above.filter(|(s, layer)| s.distance > *layer) {
+            *p -= s.normal * (s.distance - layer);
+        }
     }
 
     /// A layer plus a relative round-off allowance: a particle projected to its layer rests
