@@ -170,6 +170,20 @@ pub struct BendStencil {
     pub rest: DVec3,
 }
 
+impl BendStencil {
+    /// The stencil's vertices at `x` (model order), m.
+    #[inline]
+    pub fn corners(&self, x: &[DVec3]) -> [DVec3; 4] {
+        self.vertices.map(|i| x[i as usize])
+    }
+
+    /// Σ wᵢpᵢ at corners `p` ([`BendStencil::corners`]), √(N/m)·m.
+    #[inline]
+    pub fn value(&self, p: [DVec3; 4]) -> DVec3 {
+        (0..4).map(|i| p[i] * self.weights[i]).sum()
+    }
+}
+
 /// The frame of a hinge with edge (p0, p1) and opposite vertices p2, p3: the unit edge
 /// t = (p1 − p0)/|p1 − p0|, the normal n = t × (p2 − p3) normalised (the two triangles' mean
 /// normal: p2 and p3 lie on either side of the edge), and t × n; `None` when degenerate
@@ -236,8 +250,8 @@ pub fn fabric_model_terms(mesh: &Mesh, material: &Material) -> FabricTerms {
             if let [c, d] = opposite[..] {
                 if let Some(mut s) = bend_stencil([a, b, c, d], p, material.bend) {
                     if material.bend_rest == BendRest::Mesh {
-                        let x = s.vertices.map(|i| p[i as usize]);
-                        let value: DVec3 = (0..4).map(|i| x[i] * s.weights[i]).sum();
+                        let x = s.corners(p);
+                        let value = s.value(x);
                         if let Some([t, n, b]) = hinge_frame(x) {
                             s.rest = DVec3::new(value.dot(t), value.dot(n), value.dot(b));
                         }
@@ -281,9 +295,8 @@ pub fn bending_energy(stencils: &[BendStencil], x: &[DVec3]) -> f64 {
     stencils
         .iter()
         .map(|s| {
-            let p = s.vertices.map(|i| x[i as usize]);
-            let v: DVec3 = (0..4).map(|i| p[i] * s.weights[i]).sum::<DVec3>()
-                - from_frame(hinge_frame(p), s.rest);
+            let p = s.corners(x);
+            let v = s.value(p) - from_frame(hinge_frame(p), s.rest);
             0.5 * v.length_squared()
         })
         .sum()

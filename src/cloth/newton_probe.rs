@@ -98,10 +98,10 @@ fn probe() {
     }
     if let Ok(r) = std::env::var("PROBE_BEND_REST") {
         use crate::cloth::material::BendRest;
-        job.bend_rest = Some(if r == "flat" {
-            BendRest::Flat
-        } else {
-            BendRest::Mesh
+        job.bend_rest = Some(match r.as_str() {
+            "flat" => BendRest::Flat,
+            "mesh" => BendRest::Mesh,
+            _ => panic!("PROBE_BEND_REST is `flat` or `mesh`, not {r:?}"),
         });
     }
     if let Ok(j) = std::env::var("PROBE_JAM") {

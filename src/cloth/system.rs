@@ -234,10 +234,7 @@ impl ReducedSystem {
                 }
             }
             if v.iter().any(|&i| i != PINNED) {
-                let target = from_frame(
-                    hinge_frame(st.vertices.map(|i| model.mesh.positions[i as usize])),
-                    st.rest,
-                );
+                let target = from_frame(hinge_frame(st.corners(&model.mesh.positions)), st.rest);
                 bends.v.push(v);
                 bends.w.push(w);
                 bends.fixed_terms.extend(terms);
