@@ -17,7 +17,8 @@
 //! - `fast/step_1`, `fast/step_10`: a whole time step with 1 and 10 local/global iterations; one
 //!   iteration costs (step_10 − step_1)/9, and step_10 is the default frame;
 //! - `newton/factor`: Hessian assembly plus numeric refactorisation of the 3n×3n matrix (what
-//!   each Newton iteration pays besides the solve and the line search);
+//!   each Newton iteration pays besides the solve and the line search; in single precision
+//!   where the factor is supernodal, as Newton factors by default);
 //! - `newton/iteration`: one Newton iteration (assemblies, factorisation, solve, line search);
 //! - `newton/step`: a whole time step to the default tolerance (skipped when that takes more
 //!   than 10 iterations, as on tableCloth where the 50-iteration cap is hit: multiply instead).

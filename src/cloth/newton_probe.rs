@@ -7,7 +7,8 @@
 //!
 //! Other knobs: `PROBE_PIN` (a `--pin` spec), `PROBE_SHAPE` (a `--collider` spec instead of a
 //! mesh), `PROBE_JAM`, `PROBE_BEND_REST` (`flat` or `mesh`), `PROBE_SUBSTEPS`, `PROBE_BEND`,
-//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`; every step also prints the line search's
+//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`, `PROBE_DOUBLE` (set: double-precision
+//! factors only); every step also prints the line search's
 //! step lengths α.
 //!
 //! Prints the mesh's flaws, the springs' and bending stencils' stiffness spread, how many
@@ -189,6 +190,7 @@ fn probe() {
     }
     let mut solver = NewtonSolver::new(sys, params.tolerance, cap)
         .unwrap()
+        .single_precision(std::env::var("PROBE_DOUBLE").is_err())
         .with_colliders(colliders);
     solver.record_history(true);
     let mut v = vec![DVec3::ZERO; x.len()];
@@ -199,8 +201,9 @@ fn probe() {
             v.unwrap().iter().map(f).collect::<Vec<_>>().join(" ")
         };
         println!(
-            "step {step}: {stats:?} {:.2} s\n  ρ: {}\n  α: {}",
+            "step {step}: {stats:?} {:.2} s, directions (single, double) so far {:?}\n  ρ: {}\n  α: {}",
             t0.elapsed().as_secs_f64(),
+            solver.directions_by_precision(),
             joined(solver.history(), |r| format!("{r:.2e}")),
             joined(solver.step_lengths(), |a| format!("{a:.3}"))
         );
