@@ -28,7 +28,7 @@
 //! particle, so the 3n×3n matrix is factored in that block order (`SymmetricOrdering::Identity`)
 //! and no permutation is applied at each factorisation and solve.
 //!
-//! Precision: a supernodal factor is computed in single precision (about 1.8× faster than in
+//! Precision: a supernodal factor is computed in single precision (about 1.5× faster than in
 //! double on the 8k-vertex skirt: half the memory traffic, twice the values per SIMD
 //! multiply-add; small systems' simplicial factors stay in double precision) and
 //! each direction is refined against the double-precision Hessian until a correction is below
@@ -341,7 +341,7 @@ impl NewtonSolver {
     }
 
     /// Whether to factor in single precision first (the default where the factor is supernodal:
-    /// about 1.8× faster factors on the 8k-vertex skirt, the same directions to 1e-4 after
+    /// about 1.5× faster factors on the 8k-vertex skirt, the same directions to 1e-4 after
     /// refinement, see [`NewtonSolver::solve_direction`]), or always in double precision (the
     /// default for the small, simplicial factors, where single precision gains nothing).
     pub fn single_precision(mut self, on: bool) -> Self {
