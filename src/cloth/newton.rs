@@ -687,9 +687,7 @@ impl NewtonSolver {
         let dim = self.dx.len();
         if self.held_factor == Precision::Single {
             self.dx.fill(0.0);
-            for (r, g) in self.refine.chunks_exact_mut(3).zip(&self.free_grad) {
-                r.copy_from_slice(&(-*g).to_array());
-            }
+            negate_into(&mut self.refine, &self.free_grad);
             let mut accurate = false;
             for round in 0..=REFINEMENTS {
                 for (b, r) in self.rhs32.iter_mut().zip(&self.refine) {
@@ -730,9 +728,7 @@ impl NewtonSolver {
             self.try_single = false;
             self.factorize_double()?;
         }
-        for (d, g) in self.dx.chunks_exact_mut(3).zip(&self.free_grad) {
-            d.copy_from_slice(&(-*g).to_array());
-        }
+        negate_into(&mut self.dx, &self.free_grad);
         let llt = LltRef::new(&self.symbolic, &self.l_values);
         let rhs = MatMut::from_column_major_slice_mut(&mut self.dx, dim, 1);
         llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.scratch.0));
@@ -743,9 +739,7 @@ impl NewtonSolver {
     /// Overwrites `self.refine` with −∇g − H·Δx, H the assembled (double-precision) Hessian,
     /// stored as its upper triangle.
     fn direction_residual(&mut self) {
-        for (r, g) in self.refine.chunks_exact_mut(3).zip(&self.free_grad) {
-            r.copy_from_slice(&(-*g).to_array());
-        }
+        negate_into(&mut self.refine, &self.free_grad);
         let (dx, refine) = (&self.dx, &mut self.refine);
         for c in 0..dx.len() {
             let (mut below, xc) = (0.0, dx[c]);
@@ -816,6 +810,13 @@ fn project_block(b: [[f64; 3]; 3], ni: Option<DVec3>, nj: Option<DVec3>) -> [[f6
         }
     }
     b
+}
+
+/// Writes −g into `out`, 3 scalars per vector.
+fn negate_into(out: &mut [f64], g: &[DVec3]) {
+    for (o, g) in out.chunks_exact_mut(3).zip(g) {
+        o.copy_from_slice(&(-*g).to_array());
+    }
 }
 
 #[inline(always)]
@@ -1011,22 +1012,43 @@ mod tests {
     }
 
     fn lab_system_pinned(n: u32, pins: bool) -> (ReducedSystem, Vec<DVec3>) {
-        let lab = lab_cloth(n, 100.0);
+        let params = StepParams {
+            time_step: 1.0 / 60.0,
+            damping: 0.2,
+            gravity: DVec3::new(0.0, -0.3, 0.0),
+        };
+        grid_system(n, 100.0, 1.0, pins, params)
+    }
+
+    /// The lab grid with every particle of mass `mass` (kg) and springs of `k` N/m, its two
+    /// corners pinned or not.
+    fn grid_system(
+        n: u32,
+        k: f64,
+        mass: f64,
+        pins: bool,
+        params: StepParams,
+    ) -> (ReducedSystem, Vec<DVec3>) {
+        let lab = lab_cloth(n, k);
         let count = lab.mesh.positions.len();
         let pinned = if pins {
             lab.pinned_flags()
         } else {
             vec![false; count]
         };
-        let model = ClothModel::new(lab.mesh, lab.springs, vec![1.0; count], pinned).unwrap();
-        let params = StepParams {
-            time_step: 1.0 / 60.0,
-            damping: 0.2,
-            gravity: DVec3::new(0.0, -0.3, 0.0),
-        };
+        let model = ClothModel::new(lab.mesh, lab.springs, vec![mass; count], pinned).unwrap();
         let sys = ReducedSystem::new(&model, params).unwrap();
         let x = sys.gather(model.positions());
         (sys, x)
+    }
+
+    /// A garment's step: 30 fps, no damping, full gravity.
+    fn garment_params() -> StepParams {
+        StepParams {
+            time_step: 1.0 / 30.0,
+            damping: 0.0,
+            gravity: DVec3::new(0.0, -9.81, 0.0),
+        }
     }
 
     /// A deterministic, non-trivial configuration: some springs stretched, some compressed.
@@ -1111,34 +1133,13 @@ mod tests {
         solver.factorize_at(&x).unwrap();
     }
 
-    /// The lab grid with every particle of mass `mass` (kg) and springs of `k` N/m, its two
-    /// corners pinned or not.
-    fn grid_system(n: u32, k: f64, mass: f64, pins: bool) -> (ReducedSystem, Vec<DVec3>) {
-        let lab = lab_cloth(n, k);
-        let count = lab.mesh.positions.len();
-        let pinned = if pins {
-            lab.pinned_flags()
-        } else {
-            vec![false; count]
-        };
-        let model = ClothModel::new(lab.mesh, lab.springs, vec![mass; count], pinned).unwrap();
-        let params = StepParams {
-            time_step: 1.0 / 30.0,
-            damping: 0.0,
-            gravity: DVec3::new(0.0, -9.81, 0.0),
-        };
-        let sys = ReducedSystem::new(&model, params).unwrap();
-        let x = sys.gather(model.positions());
-        (sys, x)
-    }
-
     /// Steps with single-precision factors (refined) and with double-precision ones land on the
     /// same minimiser: each iterate is within ‖∇g‖ / λ_min(H) of it, λ_min ≥ s·m/h² (the inertia
     /// term; springs and bending only add positive semi-definite blocks), so the two end within
     /// twice that of each other.
     #[test]
     fn single_and_double_precision_factors_reach_the_same_positions() {
-        let (sys, x0) = grid_system(12, 100.0, 0.01, true);
+        let (sys, x0) = grid_system(12, 100.0, 0.01, true, garment_params());
         let h = sys.params.time_step;
         let bound =
             2.0 * DEFAULT_TOLERANCE * sys.force_scale() / (sys.inertia_scale() * 0.01 / (h * h));
@@ -1188,7 +1189,7 @@ mod tests {
     #[test]
     fn ill_conditioned_steps_fall_back_to_the_double_factor() {
         for mass in [1e-6, 1e-9] {
-            let (sys, x0) = grid_system(8, 1.0e4, mass, false);
+            let (sys, x0) = grid_system(8, 1.0e4, mass, false, garment_params());
             let x0 = perturbed(&x0);
             let run = |single: bool| {
                 let mut solver = NewtonSolver::new(sys.clone(), 1e-6, 20)

@@ -543,28 +543,18 @@ mod tests {
     use crate::cloth::collide::mesh::MeshCollider;
     use crate::cloth::preset::lab_cloth;
     use crate::cloth::{ClothModel, StepParams};
+    use crate::data::statics::StaticMesh;
 
-    /// A closed octahedron of radius 0.3 m around the origin, as a mesh collider.
-    fn octahedron() -> Collider {
-        let r = 0.3;
-        let v = vec![
-            DVec3::X * r,
-            -DVec3::X * r,
-            DVec3::Y * r,
-            -DVec3::Y * r,
-            DVec3::Z * r,
-            -DVec3::Z * r,
-        ];
-        let t = vec![
-            [0, 2, 4],
-            [2, 1, 4],
-            [1, 3, 4],
-            [3, 0, 4],
-            [2, 0, 5],
-            [1, 2, 5],
-            [3, 1, 5],
-            [0, 3, 5],
-        ];
+    /// A closed sphere mesh of radius 0.3 m around the origin (the exporter's, see
+    /// [`StaticMesh::sphere`]), as a mesh collider.
+    fn ball_mesh() -> Collider {
+        let ball = StaticMesh::sphere(DVec3::ZERO, 0.3, "ball");
+        let v = ball.positions.iter().map(|p| p.as_dvec3()).collect();
+        let t = ball
+            .indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect();
         Collider::Mesh(Arc::new(MeshCollider::new(v, t).unwrap()))
     }
 
@@ -587,7 +577,7 @@ mod tests {
         let sys = ReducedSystem::new(&model, params).unwrap();
         let n = sys.len();
         let colliders = Colliders {
-            shapes: vec![octahedron()],
+            shapes: vec![ball_mesh()],
             thickness: 0.004,
             friction: 0.3,
         };
