@@ -17,6 +17,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use scenebake::bake::cloth::{bake_cloth, ClothJob, Switch};
+use scenebake::cloth::collide::ContactModel;
 use scenebake::cloth::pins::PinSpec;
 
 fn path(rel: &str) -> PathBuf {
@@ -42,6 +43,14 @@ fn main() {
     let frames = first.frames;
     let cases = [
         ("on Fox's walk, body collider", on_fox.clone()),
+        (
+            "on Fox's walk, body collider, barrier",
+            ClothJob {
+                contact: Some(ContactModel::Barrier),
+                output: dir.join("barrier.glb"),
+                ..on_fox.clone()
+            },
+        ),
         (
             "on Fox's walk, no body collider",
             ClothJob {

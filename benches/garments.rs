@@ -15,7 +15,7 @@
 use std::path::PathBuf;
 
 use scenebake::bake::cloth::{simulate_cloth, ClothJob, ClothSource, SimulatedCloth};
-use scenebake::cloth::collide::ColliderSpec;
+use scenebake::cloth::collide::{ColliderSpec, ContactModel};
 use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::springs::SpringKind;
 use scenebake::cloth::SolverKind;
@@ -46,7 +46,7 @@ fn cases(frames: usize) -> Vec<Case> {
         ),
     ];
     let mut add = |label: String, mut job: ClothJob| {
-        job.frames = Some(frames);
+        job.frames = job.frames.or(Some(frames));
         out.push(Case { label, job });
     };
     for (name, file, pin) in skirts {
@@ -71,7 +71,15 @@ fn cases(frames: usize) -> Vec<Case> {
         let mut job = base();
         job.pin.clear();
         job.collider = vec!["sphere:0,0.55,0,0.3".parse::<ColliderSpec>().unwrap()];
-        add(format!("{name} cotton newton 0.1 dropped on a sphere"), job);
+        add(
+            format!("{name} cotton newton 0.1 dropped on a sphere"),
+            job.clone(),
+        );
+        job.contact = Some(ContactModel::Barrier);
+        add(
+            format!("{name} cotton newton 0.1 dropped on a sphere, barrier"),
+            job,
+        );
         // Dropped, unpinned, onto the table mesh (top at y = 0.75 m, 1.2 × 0.8 m): the hem ring
         // (y = 0.8 for skirt8K, 0.65 for circle_skirt, which is raised 0.15 m as in
         // docs/garments.md's Blender case) lands on the top and hangs over its long edges.
@@ -83,18 +91,26 @@ fn cases(frames: usize) -> Vec<Case> {
         job.collider = vec![ColliderSpec::mesh(
             PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("meshes/table.obj"),
         )];
-        add(format!("{name} cotton newton 0.1 dropped on a table"), job);
+        add(
+            format!("{name} cotton newton 0.1 dropped on a table"),
+            job.clone(),
+        );
+        job.contact = Some(ContactModel::Barrier);
+        add(
+            format!("{name} cotton newton 0.1 dropped on a table, barrier"),
+            job,
+        );
     }
     let mut job = ClothJob::new(
         ClothSource::File(garment("dress_draped.obj")),
         "unused.glb".into(),
     );
     job.collider = vec![ColliderSpec::mesh(garment("mannequin.obj"))];
-    add("dress on mannequin cotton newton 0.1".into(), job);
     // The dress is judged after 30 frames, whatever FRAMES says.
-    if let Some(dress) = out.last_mut() {
-        dress.job.frames = Some(frames.max(30));
-    }
+    job.frames = Some(frames.max(30));
+    add("dress on mannequin cotton newton 0.1".into(), job.clone());
+    job.contact = Some(ContactModel::Barrier);
+    add("dress on mannequin cotton newton 0.1, barrier".into(), job);
     out
 }
 

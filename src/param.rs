@@ -126,6 +126,8 @@ params! {
     Thickness => "thickness",
     /// Coulomb friction.
     Friction => "friction",
+    /// Newton's contact model.
+    Contact => "contact",
     /// Wind velocity.
     Wind => "wind",
     /// Aerodynamic drag coefficient.

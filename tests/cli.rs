@@ -166,6 +166,18 @@ fn bad_option_values_name_the_option() {
             &["--collider", "plane:0,1,0,-1", "--friction", "-0.5"],
             &["--friction", "zero or a positive"],
         ),
+        (
+            &[
+                "--collider",
+                "plane:0,1,0,-1",
+                "--contact",
+                "barrier",
+                "--solver",
+                "fast",
+            ],
+            &["--contact", "the fast solver"],
+        ),
+        (&["--contact", "sticky"], &["--contact", "sticky"]),
         (&["--wind", "1,2"], &["--wind", "3 comma-separated"]),
         (
             &["--wind", "5,0,0", "--drag", "-1"],
@@ -327,7 +339,7 @@ fn a_scene_runs_its_jobs_and_reports() {
     let r = run_scene(
         &dir.path().join("drape.toml"),
         &format!(
-            "[[cloth]]\nname = \"drape\"\ninput = \"{}\"\nframes = 3\ncollider = [\"mesh:block.obj\", \"plane:0,1,0,-2\"]\nwind = \"1,0,0\"\noutput = \"out/drape.glb\"\n",
+            "[[cloth]]\nname = \"drape\"\ninput = \"{}\"\nframes = 3\ncollider = [\"mesh:block.obj\", \"plane:0,1,0,-2\"]\ncontact = \"barrier\"\nwind = \"1,0,0\"\noutput = \"out/drape.glb\"\n",
             mesh("plane_30x30.obj").display()
         ),
     );
@@ -338,6 +350,7 @@ fn a_scene_runs_its_jobs_and_reports() {
         "{env}"
     );
     assert_eq!(env["wind"]["velocity"][0], 1.0, "{env}");
+    assert_eq!(env["contact"], "barrier", "{env}");
 
     // --only runs one job.
     std::fs::remove_file(dir.path().join("out/lab.glb")).unwrap();

@@ -10,7 +10,9 @@ use common::geometry::{box_distance, plane_distance, sphere_distance, Triangles}
 use common::mesh_path;
 use glam::{DVec3, Vec3};
 use scenebake::bake::cloth::{simulate_cloth, ClothJob, ClothSource, SimulatedCloth};
-use scenebake::cloth::collide::{Ball, Collider, ColliderSpec, Colliders, Cuboid, HalfSpace};
+use scenebake::cloth::collide::{
+    Ball, Collider, ColliderSpec, Colliders, ContactModel, Cuboid, HalfSpace,
+};
 use scenebake::cloth::springs::SpringSet;
 use scenebake::cloth::{
     make_solver, newton, simulate, BakeParams, ClothModel, FrameCache, SolverKind,
@@ -18,6 +20,13 @@ use scenebake::cloth::{
 use scenebake::mesh::Mesh;
 
 const SOLVERS: [SolverKind; 2] = [SolverKind::Fast, SolverKind::Newton];
+
+/// Every solver with every contact model it has (the fast solver has one).
+const MODELS: [(SolverKind, ContactModel); 3] = [
+    (SolverKind::Fast, ContactModel::Constraint),
+    (SolverKind::Newton, ContactModel::Constraint),
+    (SolverKind::Newton, ContactModel::Barrier),
+];
 
 /// Bakes `job` with the library (no export) and returns the cache and the parameters used.
 fn bake(job: &ClothJob) -> (FrameCache, BakeParams, ClothModel) {
@@ -64,7 +73,7 @@ fn particle_on_a_slope_obeys_coulomb() {
     let normal = DVec3::new(-theta.sin(), theta.cos(), 0.0);
     let downhill = DVec3::new(-theta.cos(), -theta.sin(), 0.0);
     let thickness = 0.01;
-    for solver_kind in SOLVERS {
+    for (solver_kind, model) in MODELS {
         for (mu, sliding) in [(0.1, true), (0.5, false)] {
             let start = normal * thickness;
             let mesh = Mesh::from_triangles("particle".into(), vec![start], Vec::new());
@@ -84,6 +93,7 @@ fn particle_on_a_slope_obeys_coulomb() {
                     shapes: vec![Collider::Plane(HalfSpace::new(normal, 0.0).unwrap())],
                     thickness,
                     friction: mu,
+                    model,
                 },
                 wind: None,
             };
@@ -93,9 +103,15 @@ fn particle_on_a_slope_obeys_coulomb() {
             let end = sim.cache.frame(60)[0].as_dvec3();
             let travelled = (end - start).dot(downhill);
             let lift = (end - start).dot(normal);
+            // A barrier holds the particle where it balances the weight's normal part, within
+            // its band (half a thickness either side of the thickness).
+            let off = match model {
+                ContactModel::Constraint => 1e-5,
+                ContactModel::Barrier => 0.5 * thickness,
+            };
             assert!(
-                lift.abs() < 1e-5,
-                "{solver_kind:?} μ={mu}: off the slope by {lift}"
+                lift.abs() < off,
+                "{solver_kind:?} {model:?} μ={mu}: off the slope by {lift}"
             );
             if sliding {
                 let a = g * (theta.sin() - mu * theta.cos());
@@ -107,7 +123,7 @@ fn particle_on_a_slope_obeys_coulomb() {
                 }
                 assert!(
                     (travelled - expected).abs() < 0.01 * expected,
-                    "{solver_kind:?} μ={mu}: slid {travelled} m, Coulomb says {expected}"
+                    "{solver_kind:?} {model:?} μ={mu}: slid {travelled} m, Coulomb says {expected}"
                 );
             } else {
                 // The fast solver holds from the first step. Newton's friction is lagged: the
@@ -121,7 +137,7 @@ fn particle_on_a_slope_obeys_coulomb() {
                 let late_travel = (end - sim.cache.frame(30)[0].as_dvec3()).dot(downhill);
                 assert!(
                     travelled.abs() < total && late_travel.abs() < late,
-                    "{solver_kind:?} μ={mu}: crept {travelled} m, {late_travel} m in the last 0.5 s"
+                    "{solver_kind:?} {model:?} μ={mu}: crept {travelled} m, {late_travel} m in the last 0.5 s"
                 );
             }
         }
@@ -153,6 +169,7 @@ fn newton_keeps_a_particle_starting_inside_the_thickness_where_it_started() {
                 shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
                 thickness,
                 friction: 0.5,
+                model: Default::default(),
             },
             wind: None,
         };
@@ -254,6 +271,54 @@ fn sheet_over_a_sphere_never_penetrates() {
             ball.centre.y
         );
     }
+}
+
+/// Newton's two contact models drape the same sheet over a ball alike: with the barrier no
+/// particle comes within half a thickness of the ball (distances computed here from the ball's
+/// centre and radius), at least 95 % of the steps converge, and the sheet's centroid follows the constraint
+/// model's within a thickness at every frame (the barrier rests the cloth up to half a
+/// thickness higher, where it carries the weight).
+#[test]
+fn contact_models_drape_a_sheet_over_a_ball_alike() {
+    let ball = Ball {
+        centre: DVec3::new(0.0, -0.35, 0.0),
+        radius: 0.3,
+    };
+    let bake_with = |model| {
+        let mut job = job("plane_30x30.obj", SolverKind::Newton, 60);
+        job.collider = vec![ColliderSpec::Sphere(ball.centre, ball.radius)];
+        job.contact = Some(model);
+        job.stiffness = Some(200.0);
+        job.density = Some(0.5);
+        job.tolerance = 0.1;
+        let SimulatedCloth {
+            prepared,
+            simulation,
+        } = simulate_cloth(&job, &mut |_, _| {}).unwrap();
+        (simulation, prepared.params)
+    };
+    let (barrier, params) = bake_with(ContactModel::Barrier);
+    let (constraint, _) = bake_with(ContactModel::Constraint);
+    let t = params.colliders.thickness;
+    assert_eq!(params.colliders.model, ContactModel::Barrier);
+    let approach = closest_approach(&barrier.cache, |p| {
+        sphere_distance(ball.centre, ball.radius, p)
+    });
+    assert!(
+        approach > 0.5 * t,
+        "came {approach} m from the ball, thickness {t} m"
+    );
+    // The bar for contact: at least 95 % of the steps within the tolerance.
+    let unconverged: Vec<_> = barrier.frames.iter().filter(|f| !f.converged).collect();
+    assert!(unconverged.len() <= 3, "{unconverged:?}");
+    let mut worst: f64 = 0.0;
+    for k in 0..=60 {
+        let a = centroid(barrier.cache.frame(k));
+        let b = centroid(constraint.cache.frame(k));
+        worst = worst.max(a.distance(b));
+    }
+    assert!(worst < t, "centroids {worst} m apart, thickness {t} m");
+    assert!(barrier.frames.iter().skip(20).all(|f| f.contacts > 0));
 }
 
 /// `tableCloth.obj` over a box table (fast solver; Newton drapes the coarser 30×30 sheet, since

@@ -42,6 +42,10 @@
 //! force) and from the Hessian (blocks Sᵢ H_ij Sⱼ, S = I − nnᵀ), every trial point of the line
 //! search is projected back out of the colliders, and the held particles are settled back onto
 //! the surface they slid over (a slide along a curved surface's tangent plane lifts them off).
+//! With the barrier model ([`super::collide::ContactModel::Barrier`]) nothing is held: the
+//! barrier's gradient and diagonal blocks join ∇g and H, the step's start is made feasible, and
+//! a trial point past a barrier (infinite energy) is halved away; where no trial is feasible the
+//! iterate stays.
 //!
 //! Convergence: quadratic near the solution while no spring is compressed there. A compressed
 //! spring's clamped block is not the exact second derivative, so on crumpling cloth Newton falls
@@ -356,9 +360,13 @@ impl NewtonSolver {
         (self.directions[0], self.directions[1])
     }
 
-    /// Adds colliders as constraints with lagged Coulomb friction (see [`NewtonContact`]).
+    /// Adds colliders, as constraints or a barrier ([`Colliders::model`]), with lagged Coulomb
+    /// friction (see [`NewtonContact`]).
     pub fn with_colliders(mut self, colliders: Option<Colliders>) -> Self {
-        self.contact = colliders.map(|c| NewtonContact::new(c, &self.sys));
+        self.contact = colliders.map(|c| {
+            let model = c.model;
+            NewtonContact::new(c, &self.sys).with_model(model, &self.sys)
+        });
         self
     }
 
@@ -408,6 +416,7 @@ impl NewtonSolver {
             *held = self
                 .contact
                 .as_ref()
+                .filter(|c| !c.is_barrier())
                 .and_then(|c| c.resting(i, x[i]))
                 .filter(|s| NewtonContact::holds(s, *g))
                 .map(|s| s.normal);
@@ -888,6 +897,20 @@ impl StepSolver for NewtonSolver {
             }
         }
         self.trial = trial;
+        if let Some(c) = self.contact.as_mut().filter(|c| c.is_barrier()) {
+            let behind = c.make_feasible(x);
+            if behind > 0 {
+                return Err(Error::Diverged {
+                    frame: 0,
+                    reason: format!(
+                        "{behind} particles start time step {} behind a collider's surface, where \
+                         the barrier cannot push them out (try the constraint contact model)",
+                        self.steps + 1
+                    ),
+                });
+            }
+            c.set_iterate(x);
+        }
         if let Some(hist) = &mut self.history {
             hist.clear();
         }
@@ -931,14 +954,18 @@ impl StepSolver for NewtonSolver {
             }
             let slack = ROUNDOFF * g0.abs();
             let mut alpha = 1.0;
+            let mut g = f64::INFINITY;
+            let barrier = self.contact.as_ref().is_some_and(NewtonContact::is_barrier);
             let mut trial = std::mem::take(&mut self.trial);
             for _ in 0..MAX_HALVINGS {
                 for ((t, x), d) in trial.iter_mut().zip(x.iter()).zip(self.dx.chunks_exact(3)) {
                     *t = *x + DVec3::from_slice(d) * alpha;
                 }
-                self.project(&mut trial);
-                self.settle(&mut trial);
-                let g = self.energy(&trial);
+                if !barrier {
+                    self.project(&mut trial);
+                    self.settle(&mut trial);
+                }
+                g = self.energy(&trial);
                 if g <= g0 + ARMIJO * alpha * slope + slack {
                     break;
                 }
@@ -947,7 +974,14 @@ impl StepSolver for NewtonSolver {
             if let Some(steps) = &mut self.step_lengths {
                 steps.push(alpha);
             }
-            x.copy_from_slice(&trial);
+            // A barrier's infinite energy never enters x: with no feasible trial, x stays (a
+            // NaN still does, and is reported as non-finite at the next gradient).
+            if g != f64::INFINITY {
+                x.copy_from_slice(&trial);
+                if let Some(c) = self.contact.as_mut().filter(|c| c.is_barrier()) {
+                    c.set_iterate(x);
+                }
+            }
             self.trial = trial;
         };
         for ((v, x), x0) in v.iter_mut().zip(x.iter()).zip(&self.x0) {
@@ -989,6 +1023,7 @@ mod tests {
             shapes: vec![Collider::Sphere(Ball { centre, radius })],
             thickness: t,
             friction: 0.3,
+            model: Default::default(),
         };
         let mut contact = NewtonContact::new(colliders, &sys);
         let on = centre + DVec3::Y * (radius + t);

@@ -7,7 +7,8 @@
 //!
 //! Other knobs: `PROBE_PIN` (a `--pin` spec), `PROBE_SHAPE` (a `--collider` spec instead of a
 //! mesh), `PROBE_JAM`, `PROBE_BEND_REST` (`flat` or `mesh`), `PROBE_SUBSTEPS`, `PROBE_BEND`,
-//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`, `PROBE_DOUBLE` (set: double-precision
+//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`, `PROBE_CONTACT` (`constraint` or
+//! `barrier`), `PROBE_DOUBLE` (set: double-precision
 //! factors only); every step also prints the line search's
 //! step lengths α.
 //!
@@ -103,6 +104,14 @@ fn probe() {
             "flat" => BendRest::Flat,
             "mesh" => BendRest::Mesh,
             _ => panic!("PROBE_BEND_REST is `flat` or `mesh`, not {r:?}"),
+        });
+    }
+    if let Ok(c) = std::env::var("PROBE_CONTACT") {
+        use crate::cloth::collide::ContactModel;
+        job.contact = Some(match c.as_str() {
+            "constraint" => ContactModel::Constraint,
+            "barrier" => ContactModel::Barrier,
+            _ => panic!("PROBE_CONTACT is `constraint` or `barrier`, not {c:?}"),
         });
     }
     if let Ok(j) = std::env::var("PROBE_JAM") {

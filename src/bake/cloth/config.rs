@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use glam::DVec3;
 
-use crate::cloth::collide::{ColliderSpec, DEFAULT_FRICTION};
+use crate::cloth::collide::{ColliderSpec, ContactModel, DEFAULT_FRICTION};
 use crate::cloth::material::{BendRest, MaterialPreset};
 use crate::cloth::pins::PinSpec;
 use crate::cloth::SolverKind;
@@ -312,6 +312,10 @@ pub struct ClothJob {
     /// Coulomb friction coefficient against colliders (0 = ice).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_FRICTION, value_name = "MU"))]
     pub friction: f64,
+    /// How Newton keeps the cloth out of the colliders: `constraint` (an active set) or
+    /// `barrier` (a smooth barrier energy) [default: constraint].
+    #[cfg_attr(feature = "cli", arg(long, value_enum, value_name = "MODEL"))]
+    pub contact: Option<ContactModel>,
     /// Mean wind velocity in m/s; turns on aerodynamic drag and lift on every triangle.
     #[serde(deserialize_with = "de::opt_vec3")]
     #[cfg_attr(feature = "cli", arg(long, value_name = "X,Y,Z", value_parser = crate::spec::vec3_value, allow_hyphen_values = true))]
@@ -455,6 +459,7 @@ impl Default for ClothJob {
             collider: Vec::new(),
             thickness: None,
             friction: DEFAULT_FRICTION,
+            contact: None,
             wind: None,
             drag: None,
             lift: None,

@@ -15,7 +15,9 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use crate::cloth::collide::{Collider, Colliders, MeshCollider, DEFAULT_THICKNESS_FRACTION};
+use crate::cloth::collide::{
+    Collider, Colliders, ContactModel, MeshCollider, DEFAULT_THICKNESS_FRACTION,
+};
 use crate::cloth::material::{fabric_model_terms, DEFAULT_JAM_STRAIN, DEFAULT_MATERIAL};
 use crate::cloth::model::{masses_from_area, masses_from_volume};
 use crate::cloth::pins::pinned_flags;
@@ -83,6 +85,13 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         return Err(Error::param_value(
             Param::MaxIterations,
             "0: must be at least 1",
+        ));
+    }
+    if job.contact == Some(ContactModel::Barrier) && job.solver == SolverKind::Fast {
+        return Err(Error::param_value(
+            Param::Contact,
+            "barrier: Newton's contact model; the fast solver keeps the cloth out with its \
+             filtered solve (choose the newton solver, or leave the contact model out)",
         ));
     }
     if job.mass.is_some() && job.density.is_some() {
@@ -417,6 +426,7 @@ fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
         shapes,
         thickness,
         friction: non_negative(Param::Friction, job.friction)?,
+        model: job.contact.unwrap_or_default(),
     })
 }
 
@@ -780,6 +790,7 @@ fn environment_report(params: &BakeParams, frames: &[StepStats]) -> Option<Envir
         colliders: c.shapes.iter().map(Collider::describe).collect(),
         thickness: c.thickness,
         friction: c.friction,
+        contact: c.model,
         contacts: frames.iter().map(|f| f.contacts).collect(),
         wind: params.wind.as_ref().map(|w| WindReport {
             velocity: w.velocity.to_array(),

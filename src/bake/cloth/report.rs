@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::cloth::collide::ContactModel;
 use crate::cloth::material::{Material, MaterialPreset};
 use crate::cloth::SolverKind;
 use crate::export::vat::VatManifest;
@@ -156,6 +157,8 @@ pub struct EnvironmentReport {
     pub thickness: f64,
     /// Coulomb friction coefficient.
     pub friction: f64,
+    /// Newton's contact model (`constraint` or `barrier`).
+    pub contact: ContactModel,
     /// Particles touching a collider at the end of each frame.
     pub contacts: Vec<usize>,
     /// The wind, when any.

@@ -20,6 +20,11 @@
 //!   A particle that starts closer to a collider than the thickness (a garment draped by another
 //!   tool with a smaller margin) is kept at the distance it starts at until it moves away
 //!   ([`rest_layer`]).
+//! - With [`ContactModel::Barrier`] Newton has no active set: a barrier energy, zero beyond one
+//!   and a half layers from a surface and unbounded at half a layer, joins the objective, and
+//!   the line search rejects trial points past a barrier (looking from the last accepted
+//!   iterate, so a path that crossed a surface is caught). Friction is the same lagged potential,
+//!   built on the barrier's force.
 //!
 //! Positions are metres in the cloth's frame; forces newtons.
 
@@ -167,6 +172,60 @@ pub struct NewtonContact {
     /// collider's surface on the free side, m; zero for analytic shapes (which are cheap to ask)
     /// and for particles touching or behind a surface. See [`NewtonContact::out_of_reach`].
     clear: Vec<f64>,
+    /// Per particle: the barrier's force scale c·mᵢ·g₀ (N), where contact is a barrier energy
+    /// ([`ContactModel::Barrier`]); empty where it is a constraint.
+    barrier: Vec<f64>,
+    /// Per particle: the last feasible iterate ([`NewtonContact::set_iterate`]), where a
+    /// barrier's queries look from: the segment from it to a trial point is the line search's
+    /// path, so a trial that crossed a surface on the way is infeasible.
+    iterate: Vec<DVec3>,
+}
+
+/// How Newton keeps the cloth out of the colliders (`--contact`; the fast solver always uses
+/// its filtered solve, see the module documentation).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum ContactModel {
+    // (The variants' doc comments are `--help` text.)
+    /// Every particle stays at least its layer (the thickness) from every collider: Newton
+    /// holds the particles pushed into a collider along its normal (an active set)
+    #[default]
+    Constraint,
+    /// A smooth barrier energy (incremental potential contact, Li et al. 2020) keeps each
+    /// particle more than half its layer from every collider: zero beyond one and a half layers,
+    /// unbounded towards half a layer, the contact forces part of the converged equilibrium
+    Barrier,
+}
+
+/// The barrier's force at the middle of its band (a particle resting one layer from the
+/// surface), in weights of the particle (mᵢ·g₀).
+const BARRIER_HOLD: f64 = 10.0;
+
+/// The thinnest layer a barrier is given, in thicknesses.
+const MIN_BARRIER_LAYER: f64 = 0.1;
+
+/// Standard gravity, m/s²: the barrier's force unit is a particle's standard weight.
+const G0: f64 = 9.80665;
+
+/// The barrier's shape on u ∈ (0, 1), the particle's depth into the band (0 at its bottom, 1 at
+/// its top): β(u) = −(u − 1)² ln u, with β′ and β″. β(1) = β′(1) = β″(1) = 0 (the barrier starts
+/// smoothly), β → ∞ as u → 0.
+#[inline]
+fn barrier_shape(u: f64) -> (f64, f64, f64) {
+    let (v, l) = (u - 1.0, u.ln());
+    (
+        -v * v * l,
+        -(2.0 * v * l + v * v / u),
+        -(2.0 * l + 4.0 * v / u - v * v / (u * u)),
+    )
+}
+
+/// The barrier band of a particle with layer ℓ: its bottom (where the energy is infinite) and
+/// width, m. The band spans (ℓ/2, 3ℓ/2): a particle pushed out to its layer sits at its middle.
+#[inline]
+fn barrier_band(layer: f64) -> (f64, f64) {
+    (0.5 * layer, layer)
 }
 
 /// How far [`NewtonContact::begin_step`] looks for a mesh collider's surface around each
@@ -185,7 +244,117 @@ impl NewtonContact {
             layer: Vec::new(),
             carry: Vec::new(),
             clear: Vec::new(),
+            barrier: Vec::new(),
+            iterate: vec![DVec3::ZERO; sys.len()],
         }
+    }
+
+    /// Remembers `x`, a feasible iterate, as where the barrier's queries look from (see
+    /// [`ContactModel::Barrier`]); [`NewtonContact::begin_step`] sets it to the step's start.
+    pub fn set_iterate(&mut self, x: &[DVec3]) {
+        self.iterate.copy_from_slice(x);
+    }
+
+    /// Chooses the contact model (the constraint unless told).
+    pub fn with_model(mut self, model: ContactModel, sys: &ReducedSystem) -> Self {
+        self.barrier = match model {
+            ContactModel::Constraint => Vec::new(),
+            ContactModel::Barrier => {
+                let c = BARRIER_HOLD / -barrier_shape(0.5).1;
+                sys.mass.iter().map(|m| c * m * G0).collect()
+            }
+        };
+        self
+    }
+
+    /// True when contact is a barrier energy ([`ContactModel::Barrier`]).
+    pub fn is_barrier(&self) -> bool {
+        !self.barrier.is_empty()
+    }
+
+    /// Calls `f(j, surface, u, width)` for every collider j whose barrier band particle `i` at
+    /// `p` is inside, u ∈ (0, 1) its depth into the band (see [`barrier_shape`]) and `width` the
+    /// band's (m); returns false, having stopped, when `p` is at or below a band's bottom
+    /// (infeasible).
+    #[inline]
+    fn barrier_contacts(
+        &self,
+        i: usize,
+        p: DVec3,
+        mut f: impl FnMut(usize, &SurfacePoint, f64, f64),
+    ) -> bool {
+        let at = self.iterate[i];
+        for (j, shape) in self.colliders.shapes.iter().enumerate() {
+            let start = self.from(i, j);
+            let (lo, width) = barrier_band(self.layer(i, j));
+            let top = lo + width;
+            if self.out_of_reach(i, j, top, p, start) && self.out_of_reach(i, j, top, at, start) {
+                continue;
+            }
+            let Some(s) = shape.contact(p, at, self.reach(top, p, at)) else {
+                continue;
+            };
+            if s.distance >= top {
+                continue;
+            }
+            let u = (s.distance - lo) / width;
+            if u <= 0.0 {
+                return false;
+            }
+            f(j, &s, u, width);
+        }
+        true
+    }
+
+    /// Makes `x`, a step's start (projected out of the colliders, [`NewtonContact::project`]),
+    /// feasible for the barrier: a particle still at or below a band's bottom (pushed out of
+    /// one part of a body into another, at a concave spot) is projected again, up to a few
+    /// times; where it then still is within half a layer of a surface, in front of it, that
+    /// layer thins to the distance it is at (it grows back as the particle moves away, see
+    /// [`NewtonContact::end_step`]). Returns how many particles remain behind a surface (none
+    /// in a feasible start).
+    pub fn make_feasible(&mut self, x: &mut [DVec3]) -> usize {
+        const ROUNDS: usize = 4;
+        let mut behind = 0;
+        for (i, p) in x.iter_mut().enumerate() {
+            for _ in 0..ROUNDS {
+                if self.barrier_contacts(i, *p, |_, _, _, _| {}) {
+                    break;
+                }
+                self.project(i, p);
+            }
+            let at = self.iterate[i];
+            for (j, shape) in self.colliders.shapes.iter().enumerate() {
+                let k = i * self.colliders.shapes.len() + j;
+                let (lo, width) = barrier_band(self.layer(i, j));
+                let Some(s) = shape.contact(*p, at, self.reach(lo + width, *p, at)) else {
+                    continue;
+                };
+                if s.distance <= lo {
+                    if s.distance > 0.0 {
+                        self.layer[k] = s.distance;
+                    } else {
+                        behind += 1;
+                    }
+                }
+            }
+        }
+        behind
+    }
+
+    /// The barrier energy at `x`, joules: infinite where a particle is at or below a band's
+    /// bottom.
+    fn barrier_energy(&self, x: &[DVec3]) -> f64 {
+        let mut total = 0.0;
+        for (i, (p, c)) in x.iter().zip(&self.barrier).enumerate() {
+            let feasible = self.barrier_contacts(i, *p, |_, _, u, width| {
+                total += c * width * barrier_shape(u).0;
+            });
+            if !feasible {
+                return f64::INFINITY;
+            }
+        }
+        total
     }
 
     /// Replaces collider `j` (a body that moved: its pose at the end of the coming step, see
@@ -232,6 +401,11 @@ impl NewtonContact {
         } else {
             self.carry.clear();
         }
+        // The barrier looks from where each particle starts as the colliders see it: carried
+        // along with a moving body's surface.
+        for (i, p) in x0.iter().enumerate() {
+            self.iterate[i] = *p + self.carry(i);
+        }
         if self.layer.is_empty() {
             let t = self.colliders.thickness;
             self.layer = x0
@@ -243,6 +417,13 @@ impl NewtonContact {
                         .map(move |shape| rest_layer(t, shape.contact(*p, *p, t)))
                 })
                 .collect();
+            if self.is_barrier() {
+                // A barrier band needs room: a particle starting closer than a tenth of the
+                // thickness (or behind a surface) is moved out to it at the first step.
+                for l in &mut self.layer {
+                    *l = l.max(MIN_BARRIER_LAYER * t);
+                }
+            }
         }
         let reach = CLEAR_REACH * self.colliders.thickness;
         let mut clear = std::mem::take(&mut self.clear);
@@ -419,10 +600,17 @@ impl NewtonContact {
         d - c.normal * d.dot(c.normal)
     }
 
-    /// The friction potential at `x`, joules.
+    /// The friction potential and, with [`ContactModel::Barrier`], the barrier energy at `x`,
+    /// joules (infinite where a particle is at or below its barrier).
     pub fn energy(&self, x: &[DVec3]) -> f64 {
+        let barrier = if self.is_barrier() {
+            self.barrier_energy(x)
+        } else {
+            0.0
+        };
         let (mu, eps) = (self.colliders.friction, self.slip_scale);
-        self.lagged
+        let friction: f64 = self
+            .lagged
             .iter()
             .map(|c| {
                 let u = self.slip(c, x).length();
@@ -433,7 +621,8 @@ impl NewtonContact {
                 };
                 mu * c.force * f
             })
-            .sum()
+            .sum();
+        barrier + friction
     }
 
     /// Adds the gradient of [`NewtonContact::energy`] to `grad` and passes each particle's 3×3
@@ -444,6 +633,17 @@ impl NewtonContact {
         grad: &mut [DVec3],
         mut block: impl FnMut(usize, [[f64; 3]; 3]),
     ) {
+        // Barrier: gradient c·β′(u)·n, Hessian c·β″(u)/width·n nᵀ (the surface's curvature term
+        // c·β′·∇²s is left out: for a convex collider it is negative semi-definite, and leaving
+        // it out keeps the block positive semi-definite, as incremental potential contact's
+        // projection does).
+        for (i, (p, c)) in x.iter().zip(&self.barrier).enumerate() {
+            self.barrier_contacts(i, *p, |_, s, u, width| {
+                let (_, d1, d2) = barrier_shape(u);
+                grad[i] += s.normal * (c * d1);
+                block(i, outer(s.normal, s.normal, c * d2 / width));
+            });
+        }
         let (mu, eps) = (self.colliders.friction, self.slip_scale);
         for c in &self.lagged {
             let i = c.particle as usize;
@@ -479,20 +679,41 @@ impl NewtonContact {
 
     /// Records the contacts at the end of a step, where `grad` is the objective's gradient
     /// (friction included): each resting particle's normal force is the part of the gradient
-    /// the collider takes (∇g·n when positive), for the next step's friction. Thinned layers
-    /// grow back towards the thickness as their particles move away. Returns how many particles
-    /// rest on a collider.
+    /// the collider takes (∇g·n when positive), or with the barrier model the barrier's force
+    /// (each particle inside a band, at its nearest surface), for the next step's friction.
+    /// Thinned layers grow back towards the thickness as their particles move away. Returns how
+    /// many particles rest on a collider (are inside a band).
     pub fn end_step(&mut self, x: &[DVec3], grad: &[DVec3]) -> usize {
         let mut lagged = std::mem::take(&mut self.lagged);
         lagged.clear();
-        for (i, (p, g)) in x.iter().zip(grad).enumerate() {
-            if let Some((j, s)) = self.resting_on(i, *p) {
-                lagged.push(LaggedContact {
-                    particle: i as u32,
-                    shape: j as u32,
-                    normal: s.normal,
-                    force: g.dot(s.normal).max(0.0),
+        if self.is_barrier() {
+            // The normal force is the barrier's, at the nearest surface in reach.
+            for (i, (p, c)) in x.iter().zip(&self.barrier).enumerate() {
+                let mut nearest: Option<(usize, SurfacePoint, f64)> = None;
+                self.barrier_contacts(i, *p, |j, s, u, _| {
+                    if nearest.as_ref().is_none_or(|n| s.distance < n.1.distance) {
+                        nearest = Some((j, *s, u));
+                    }
                 });
+                if let Some((j, s, u)) = nearest {
+                    lagged.push(LaggedContact {
+                        particle: i as u32,
+                        shape: j as u32,
+                        normal: s.normal,
+                        force: -c * barrier_shape(u).1,
+                    });
+                }
+            }
+        } else {
+            for (i, (p, g)) in x.iter().zip(grad).enumerate() {
+                if let Some((j, s)) = self.resting_on(i, *p) {
+                    lagged.push(LaggedContact {
+                        particle: i as u32,
+                        shape: j as u32,
+                        normal: s.normal,
+                        force: g.dot(s.normal).max(0.0),
+                    });
+                }
             }
         }
         let t = self.colliders.thickness;
@@ -541,6 +762,7 @@ mod tests {
 
     use super::*;
     use crate::cloth::collide::mesh::MeshCollider;
+    use crate::cloth::collide::HalfSpace;
     use crate::cloth::preset::lab_cloth;
     use crate::cloth::{ClothModel, StepParams};
     use crate::data::statics::StaticMesh;
@@ -558,6 +780,129 @@ mod tests {
         Collider::Mesh(Arc::new(MeshCollider::new(v, t).unwrap()))
     }
 
+    /// The lab cloth's n×n grid, nothing pinned, every particle `mass` kg, at 30 steps a second.
+    fn lab_system(n: u32, mass: f64) -> ReducedSystem {
+        let lab = lab_cloth(n, 100.0);
+        let count = lab.mesh.positions.len();
+        let model =
+            ClothModel::new(lab.mesh, lab.springs, vec![mass; count], vec![false; count]).unwrap();
+        let params = StepParams {
+            time_step: 1.0 / 30.0,
+            damping: 0.0,
+            gravity: DVec3::new(0.0, -9.81, 0.0),
+        };
+        ReducedSystem::new(&model, params).unwrap()
+    }
+
+    /// β′ and β″ are the derivatives of β (central differences), the barrier starts smoothly
+    /// at the top of its band (β = β′ = β″ = 0 at u = 1) and grows without bound at its bottom.
+    #[test]
+    fn barrier_shape_derivatives_match_finite_differences() {
+        let e = 1e-6;
+        for u in [0.01, 0.1, 0.3, 0.5, 0.7, 0.9, 0.99] {
+            let (b, d1, d2) = barrier_shape(u);
+            let fd1 = (barrier_shape(u + e).0 - barrier_shape(u - e).0) / (2.0 * e);
+            let fd2 = (barrier_shape(u + e).1 - barrier_shape(u - e).1) / (2.0 * e);
+            assert!(b > 0.0 && d1 < 0.0 && d2 > 0.0, "u {u}: {b} {d1} {d2}");
+            assert!(
+                (d1 - fd1).abs() < 1e-6 * (1.0 + fd1.abs()),
+                "u {u}: β′ {d1}, FD {fd1}"
+            );
+            assert!(
+                (d2 - fd2).abs() < 1e-5 * (1.0 + fd2.abs()),
+                "u {u}: β″ {d2}, FD {fd2}"
+            );
+        }
+        let (b, d1, d2) = barrier_shape(1.0);
+        assert_eq!((b, d1, d2), (0.0, 0.0, 0.0));
+        assert!(barrier_shape(1e-12).0 > 20.0);
+    }
+
+    /// The barrier's gradient is the derivative of its energy, and on a plane (no curvature
+    /// term to leave out) its Hessian block is the derivative of its gradient: central
+    /// differences at particles spread through the band of a ground plane and of a ball.
+    #[test]
+    fn barrier_derivatives_match_finite_differences_of_its_energy() {
+        let sys = lab_system(3, 2e-4);
+        let n = sys.len();
+        let t = 0.004;
+        for (shape, plane) in [
+            (
+                Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap()),
+                true,
+            ),
+            (ball_mesh(), false),
+        ] {
+            let colliders = Colliders {
+                shapes: vec![shape],
+                thickness: t,
+                friction: 0.0,
+                model: ContactModel::Barrier,
+            };
+            // Heights from 0.55 t to 1.45 t above the surface (the band is 0.5 t to 1.5 t).
+            let x: Vec<DVec3> = (0..n)
+                .map(|i| {
+                    let f = i as f64 / (n - 1) as f64;
+                    let lift = t * (0.55 + 0.9 * f);
+                    if plane {
+                        DVec3::new(0.01 * i as f64, lift, 0.0)
+                    } else {
+                        let dir = DVec3::new((f * 5.0).sin(), 1.0, (f * 3.0).cos()).normalize();
+                        dir * (0.3 + lift)
+                    }
+                })
+                .collect();
+            let mut contact =
+                NewtonContact::new(colliders, &sys).with_model(ContactModel::Barrier, &sys);
+            // The step starts two thicknesses farther out (so every layer is the thickness) and
+            // x is the current iterate.
+            let normal_at = |p: DVec3| if plane { DVec3::Y } else { p.normalize() };
+            let start: Vec<DVec3> = x.iter().map(|p| *p + normal_at(*p) * 2.0 * t).collect();
+            contact.begin_step(&start);
+            contact.set_iterate(&x);
+            let mut grad = vec![DVec3::ZERO; n];
+            let mut blocks = vec![[[0.0; 3]; 3]; n];
+            contact.add_derivatives(&x, &mut grad, |i, b| blocks[i] = b);
+            // (The ball mesh's faces lie inside its sphere: some particles are above the band.)
+            let inside = grad.iter().filter(|g| g.length() > 0.0).count();
+            assert!(
+                inside >= n / 2,
+                "only {inside} of {n} particles in the band"
+            );
+            let e = 1e-8;
+            for i in 0..n {
+                let normal = contact.resting(i, x[i]).map_or(DVec3::Y, |s| s.normal);
+                for dir in [DVec3::X, DVec3::Y, DVec3::Z] {
+                    let mut plus = x.clone();
+                    let mut minus = x.clone();
+                    plus[i] += dir * e;
+                    minus[i] -= dir * e;
+                    let fd = (contact.energy(&plus) - contact.energy(&minus)) / (2.0 * e);
+                    let g = grad[i].dot(dir);
+                    let scale = grad[i].length().max(1e-9);
+                    assert!((g - fd).abs() < 1e-4 * scale, "{i}: {g} vs {fd}");
+                }
+                if plane {
+                    let mut plus = x.clone();
+                    plus[i] += normal * e;
+                    let mut g1 = vec![DVec3::ZERO; n];
+                    contact.add_derivatives(&plus, &mut g1, |_, _| {});
+                    let fd = (g1[i] - grad[i]).dot(normal) / e;
+                    let b = &blocks[i];
+                    let h = DVec3::from(b[0]).dot(normal) * normal.x
+                        + DVec3::from(b[1]).dot(normal) * normal.y
+                        + DVec3::from(b[2]).dot(normal) * normal.z;
+                    assert!((h - fd).abs() < 1e-4 * h.abs(), "{i}: nᵀHn {h} vs {fd}");
+                }
+            }
+            // Below the band's bottom the energy is infinite.
+            let mut under = x.clone();
+            let s = contact.resting(0, x[0]).unwrap();
+            under[0] -= s.normal * (s.distance - 0.45 * t);
+            assert_eq!(contact.energy(&under), f64::INFINITY);
+        }
+    }
+
     /// Skipping the queries of particles out of reach ([`NewtonContact::out_of_reach`]) changes
     /// no answer: for particles starting from a few millimetres to a metre from a mesh collider
     /// and trial points moved by up to 2 cm (half of them) or 20 cm in every direction (into it,
@@ -565,21 +910,13 @@ mod tests {
     /// contact that never skips; and a good share of the queries is skipped.
     #[test]
     fn skipping_far_particles_changes_no_answer() {
-        let lab = lab_cloth(9, 100.0);
-        let count = lab.mesh.positions.len();
-        let model =
-            ClothModel::new(lab.mesh, lab.springs, vec![1e-4; count], vec![false; count]).unwrap();
-        let params = StepParams {
-            time_step: 1.0 / 30.0,
-            damping: 0.0,
-            gravity: DVec3::new(0.0, -9.81, 0.0),
-        };
-        let sys = ReducedSystem::new(&model, params).unwrap();
+        let sys = lab_system(9, 1e-4);
         let n = sys.len();
         let colliders = Colliders {
             shapes: vec![ball_mesh()],
             thickness: 0.004,
             friction: 0.3,
+            model: Default::default(),
         };
         // Start points on rays out of the centre, 0.302 m to 1.3 m from it.
         let x0: Vec<DVec3> = (0..n)

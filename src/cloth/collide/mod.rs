@@ -21,6 +21,7 @@ use crate::data::StaticMesh;
 use crate::error::{Error, Result};
 use crate::param::Param;
 use crate::spec::parse_numbers;
+pub use contact::ContactModel;
 pub use mesh::MeshCollider;
 pub use shapes::{Ball, Cuboid, HalfSpace};
 
@@ -321,6 +322,8 @@ pub struct Colliders {
     pub thickness: f64,
     /// Coulomb friction coefficient μ (dimensionless, ≥ 0).
     pub friction: f64,
+    /// How Newton keeps the particles out (the fast solver ignores it).
+    pub model: ContactModel,
 }
 
 impl Colliders {
