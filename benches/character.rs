@@ -44,10 +44,10 @@ fn main() {
     let cases = [
         ("on Fox's walk, body collider", on_fox.clone()),
         (
-            "on Fox's walk, body collider, barrier",
+            "on Fox's walk, body collider, constraint",
             ClothJob {
-                contact: Some(ContactModel::Barrier),
-                output: dir.join("barrier.glb"),
+                contact: Some(ContactModel::Constraint),
+                output: dir.join("constraint.glb"),
                 ..on_fox.clone()
             },
         ),

@@ -75,9 +75,9 @@ fn cases(frames: usize) -> Vec<Case> {
             format!("{name} cotton newton 0.1 dropped on a sphere"),
             job.clone(),
         );
-        job.contact = Some(ContactModel::Barrier);
+        job.contact = Some(ContactModel::Constraint);
         add(
-            format!("{name} cotton newton 0.1 dropped on a sphere, barrier"),
+            format!("{name} cotton newton 0.1 dropped on a sphere, constraint"),
             job,
         );
         // Dropped, unpinned, onto the table mesh (top at y = 0.75 m, 1.2 × 0.8 m): the hem ring
@@ -95,9 +95,9 @@ fn cases(frames: usize) -> Vec<Case> {
             format!("{name} cotton newton 0.1 dropped on a table"),
             job.clone(),
         );
-        job.contact = Some(ContactModel::Barrier);
+        job.contact = Some(ContactModel::Constraint);
         add(
-            format!("{name} cotton newton 0.1 dropped on a table, barrier"),
+            format!("{name} cotton newton 0.1 dropped on a table, constraint"),
             job,
         );
     }
@@ -109,8 +109,11 @@ fn cases(frames: usize) -> Vec<Case> {
     // The dress is judged after 30 frames, whatever FRAMES says.
     job.frames = Some(frames.max(30));
     add("dress on mannequin cotton newton 0.1".into(), job.clone());
-    job.contact = Some(ContactModel::Barrier);
-    add("dress on mannequin cotton newton 0.1, barrier".into(), job);
+    job.contact = Some(ContactModel::Constraint);
+    add(
+        "dress on mannequin cotton newton 0.1, constraint".into(),
+        job,
+    );
     out
 }
 

@@ -28,6 +28,31 @@ const MODELS: [(SolverKind, ContactModel); 3] = [
     (SolverKind::Newton, ContactModel::Barrier),
 ];
 
+/// Where a particle with layer ℓ rests on a flat collider pressed by `load` times its weight
+/// (m above the surface): at ℓ with the constraint; with the barrier where the documented
+/// barrier's force, c·m·g₀·(2(u − 1) ln u + (u − 1)²/u) at depth u = (s − ℓ/2)/ℓ into its band,
+/// c such that it is ten weights at u = ½, balances the load (found here by bisection).
+fn resting_height(model: ContactModel, layer: f64, load: f64) -> f64 {
+    match model {
+        ContactModel::Constraint => layer,
+        ContactModel::Barrier => {
+            let force = |u: f64| 2.0 * (u - 1.0) * u.ln() + (u - 1.0) * (u - 1.0) / u;
+            let c = 10.0 / force(0.5);
+            let target = load * 9.81 / (c * 9.80665);
+            let (mut lo, mut hi) = (1e-12, 1.0);
+            for _ in 0..200 {
+                let mid = 0.5 * (lo + hi);
+                if force(mid) > target {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            0.5 * layer + 0.5 * (lo + hi) * layer
+        }
+    }
+}
+
 /// Bakes `job` with the library (no export) and returns the cache and the parameters used.
 fn bake(job: &ClothJob) -> (FrameCache, BakeParams, ClothModel) {
     let SimulatedCloth {
@@ -145,51 +170,60 @@ fn particle_on_a_slope_obeys_coulomb() {
 }
 
 /// A particle that starts closer to the ground than the thickness (a garment draped by another
-/// tool with a smaller margin) stays where it started under Newton, held by the ground at its
-/// starting distance: it is neither pushed out to the thickness nor let in. One that starts
-/// above the thickness falls and rests at the thickness.
+/// tool with a smaller margin) is held by the ground at its starting distance under Newton: with
+/// the constraint it stays exactly there, with the barrier that distance is its layer, and it
+/// settles where the barrier carries its weight within that layer's band, never below half of
+/// it; it is not pushed out to the thickness, nor let in. One that starts above the thickness
+/// falls and rests on the thickness's layer.
 #[test]
 fn newton_keeps_a_particle_starting_inside_the_thickness_where_it_started() {
     let thickness = 0.01;
-    for (start, rest) in [(0.25 * thickness, 0.25 * thickness), (0.03, thickness)] {
-        let p0 = DVec3::new(0.1, start, -0.2);
-        let mesh = Mesh::from_triangles("particle".into(), vec![p0], Vec::new());
-        let body = ClothModel::new(mesh, SpringSet::default(), vec![0.01], vec![false]).unwrap();
-        let params = BakeParams {
-            frames: 30,
-            fps: 30.0,
-            substeps: 1,
-            damping: 0.0,
-            gravity: DVec3::new(0.0, -9.81, 0.0),
-            solver: SolverKind::Newton,
-            iterations: 10,
-            tolerance: 1e-10,
-            max_newton: newton::DEFAULT_MAX_ITERATIONS,
-            colliders: Colliders {
-                shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
-                thickness,
-                friction: 0.5,
-                model: Default::default(),
-            },
-            wind: None,
-        };
-        let mut solver = make_solver(&body, &params).unwrap();
-        let sim = simulate(&body, solver.as_mut(), &params, &mut |_| {}).unwrap();
-        for k in 1..=30 {
-            let p = sim.cache.frame(k)[0].as_dvec3();
-            let lowest = if start < thickness { start } else { rest };
+    for model in [ContactModel::Constraint, ContactModel::Barrier] {
+        for (start, layer) in [(0.25 * thickness, 0.25 * thickness), (0.03, thickness)] {
+            let p0 = DVec3::new(0.1, start, -0.2);
+            let mesh = Mesh::from_triangles("particle".into(), vec![p0], Vec::new());
+            let body =
+                ClothModel::new(mesh, SpringSet::default(), vec![0.01], vec![false]).unwrap();
+            let params = BakeParams {
+                frames: 30,
+                fps: 30.0,
+                substeps: 1,
+                damping: 0.0,
+                gravity: DVec3::new(0.0, -9.81, 0.0),
+                solver: SolverKind::Newton,
+                iterations: 10,
+                tolerance: 1e-10,
+                max_newton: newton::DEFAULT_MAX_ITERATIONS,
+                colliders: Colliders {
+                    shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
+                    thickness,
+                    friction: 0.5,
+                    model,
+                },
+                wind: None,
+            };
+            let mut solver = make_solver(&body, &params).unwrap();
+            let sim = simulate(&body, solver.as_mut(), &params, &mut |_| {}).unwrap();
+            let lowest = match model {
+                ContactModel::Constraint => layer,
+                ContactModel::Barrier => 0.5 * layer,
+            };
+            for k in 1..=30 {
+                let p = sim.cache.frame(k)[0].as_dvec3();
+                assert!(
+                    p.y > lowest - 1e-6,
+                    "{model:?}, started at {start} m: at frame {k} it is at {} m, below {lowest} m",
+                    p.y
+                );
+            }
+            let rest = resting_height(model, layer, 1.0);
+            let end = sim.cache.frame(30)[0].as_dvec3();
             assert!(
-                p.y > lowest - 1e-6,
-                "started at {start} m: at frame {k} it is at {} m, below {lowest} m",
-                p.y
+                (end.y - rest).abs() < 1e-6 && (end.x - p0.x).hypot(end.z - p0.z) < 1e-7,
+                "{model:?}, started at {start} m: rests at {end}, expected height {rest} m"
             );
+            assert!(sim.frames.iter().all(|f| f.converged), "{:?}", sim.frames);
         }
-        let end = sim.cache.frame(30)[0].as_dvec3();
-        assert!(
-            (end.y - rest).abs() < 1e-6 && (end.x - p0.x).hypot(end.z - p0.z) < 1e-7,
-            "started at {start} m: rests at {end}, expected height {rest} m"
-        );
-        assert!(sim.frames.iter().all(|f| f.converged), "{:?}", sim.frames);
     }
 }
 
@@ -200,30 +234,36 @@ fn dropped_sheet_rests_on_a_tilted_ground_without_drifting() {
     let theta = 10f64.to_radians();
     let normal = DVec3::new(-theta.sin(), theta.cos(), 0.0);
     let offset = -0.15;
-    for solver_kind in SOLVERS {
+    for (solver_kind, model) in MODELS {
         let mut job = job("plane_30x30.obj", solver_kind, 150);
         job.collider = vec![ColliderSpec::Plane(normal, offset)];
         job.friction = 0.6;
         job.damping = Some(1.0);
         job.stiffness = Some(200.0);
+        job.contact = (solver_kind == SolverKind::Newton).then_some(model);
         let (cache, params, _) = bake(&job);
         let above_ground = |p| plane_distance(normal, offset, p);
         let thickness = params.colliders.thickness;
         let approach = closest_approach(&cache, above_ground);
         assert!(
             approach > 0.0,
-            "{solver_kind:?}: a particle went {approach} m from the ground (inside)"
+            "{solver_kind:?} {model:?}: a particle went {approach} m from the ground (inside)"
         );
-        // Landed: the centroid lies at the thickness above the ground.
+        // Landed: the centroid lies where the ground carries the weight's normal part.
         let end = cache.frame(150);
         let lift = above_ground(centroid(end));
+        let rest = resting_height(model, thickness, theta.cos());
         assert!(
-            (lift - thickness).abs() < 0.1 * thickness,
-            "{solver_kind:?}: centroid {lift} m above the ground, thickness {thickness}"
+            (lift - rest).abs() < 0.1 * thickness,
+            "{solver_kind:?} {model:?}: centroid {lift} m above the ground, expected {rest} m \
+             (thickness {thickness})"
         );
         // At rest and not drifting over the last second.
         let drift = centroid(end).distance(centroid(cache.frame(120)));
-        assert!(drift < 2e-4, "{solver_kind:?}: drifted {drift} m in 1 s");
+        assert!(
+            drift < 2e-4,
+            "{solver_kind:?} {model:?}: drifted {drift} m in 1 s"
+        );
         let fastest = end
             .iter()
             .zip(cache.frame(149))

@@ -305,15 +305,17 @@ pub struct ClothJob {
     #[serde(deserialize_with = "de::spec_list")]
     #[cfg_attr(feature = "cli", arg(long = "collider", value_name = "SPEC", value_parser = crate::spec::parsed_value::<ColliderSpec>, allow_hyphen_values = true))]
     pub collider: Vec<ColliderSpec>,
-    /// How far particles stay from collider surfaces, in metres [default: a quarter of the
-    /// mean edge length].
+    /// How far particles stay from collider surfaces, in metres (with Newton's barrier, more
+    /// than half of it, resting about that far) [default: a quarter of the mean edge length].
     #[cfg_attr(feature = "cli", arg(long, value_name = "M"))]
     pub thickness: Option<f64>,
     /// Coulomb friction coefficient against colliders (0 = ice).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_FRICTION, value_name = "MU"))]
     pub friction: f64,
-    /// How Newton keeps the cloth out of the colliders: `constraint` (an active set) or
-    /// `barrier` (a smooth barrier energy) [default: constraint].
+    /// How Newton keeps the cloth out of the colliders: `barrier` (a smooth barrier energy:
+    /// particles stay more than half the thickness off and rest about a thickness off) or
+    /// `constraint` (an active set: particles stay at least the thickness off) [default:
+    /// barrier].
     #[cfg_attr(feature = "cli", arg(long, value_enum, value_name = "MODEL"))]
     pub contact: Option<ContactModel>,
     /// Mean wind velocity in m/s; turns on aerodynamic drag and lift on every triangle.

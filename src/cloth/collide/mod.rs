@@ -318,7 +318,8 @@ pub const DEFAULT_THICKNESS_FRACTION: f64 = 0.25;
 pub struct Colliders {
     /// The colliders, queried in order.
     pub shapes: Vec<Collider>,
-    /// Particles stay at least this far (m) from every collider surface.
+    /// Particles stay at least this far (m) from every collider surface; with Newton's barrier
+    /// ([`ContactModel::Barrier`]) more than half of it, resting about that far.
     pub thickness: f64,
     /// Coulomb friction coefficient μ (dimensionless, ≥ 0).
     pub friction: f64,
