@@ -287,6 +287,13 @@ fn sheet_over_a_sphere_never_penetrates() {
         let mut job = job("plane_30x30.obj", solver_kind, 60);
         job.collider = vec![ColliderSpec::Sphere(ball.centre, ball.radius)];
         let (cache, params, _) = bake(&job);
+        // Newton's default is the barrier; the fast solver's filtered solve is a constraint, and
+        // the parameters (which the report shows) say so.
+        let model = match solver_kind {
+            SolverKind::Fast => ContactModel::Constraint,
+            SolverKind::Newton => ContactModel::Barrier,
+        };
+        assert_eq!(params.colliders.model, model);
         let approach = closest_approach(&cache, |p| sphere_distance(ball.centre, ball.radius, p));
         assert!(
             approach > 0.0,

@@ -426,7 +426,12 @@ fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
         shapes,
         thickness,
         friction: non_negative(Param::Friction, job.friction)?,
-        model: job.contact.unwrap_or_default(),
+        // The fast solver's filtered solve holds particles at the thickness, as the constraint
+        // does: the report says so.
+        model: match job.solver {
+            SolverKind::Fast => ContactModel::Constraint,
+            SolverKind::Newton => job.contact.unwrap_or_default(),
+        },
     })
 }
 
