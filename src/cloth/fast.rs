@@ -931,7 +931,7 @@ impl StepSolver for FastSolver {
 mod tests {
     use super::*;
     use crate::cloth::preset::{defaults, lab_cloth};
-    use crate::cloth::{ClothModel, StepParams};
+    use crate::cloth::StepParams;
 
     /// The lab cloth at `resolution` cells per side, pinned at two corners, with stiffness `k`
     /// (N/m), mass `m` (kg per particle) and time step `h` (s).
@@ -946,22 +946,12 @@ mod tests {
         h: f64,
         pins: bool,
     ) -> (ReducedSystem, Vec<DVec3>) {
-        let cloth = lab_cloth(resolution, k);
-        let n = cloth.mesh.positions.len();
-        let pinned = if pins {
-            cloth.pinned_flags()
-        } else {
-            vec![false; n]
-        };
-        let model = ClothModel::new(cloth.mesh, cloth.springs, vec![m; n], pinned).unwrap();
         let params = StepParams {
             time_step: h,
             damping: defaults::DAMPING,
             gravity: DVec3::from_array(defaults::GRAVITY),
         };
-        let sys = ReducedSystem::new(&model, params).unwrap();
-        let x = sys.gather(model.positions());
-        (sys, x)
+        lab_cloth(resolution, k).system(m, pins, params)
     }
 
     /// A moving state: `frames` steps of a converged solve from rest.

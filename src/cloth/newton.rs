@@ -363,10 +363,7 @@ impl NewtonSolver {
     /// Adds colliders, as constraints or a barrier ([`Colliders::model`]), with lagged Coulomb
     /// friction (see [`NewtonContact`]).
     pub fn with_colliders(mut self, colliders: Option<Colliders>) -> Self {
-        self.contact = colliders.map(|c| {
-            let model = c.model;
-            NewtonContact::new(c, &self.sys).with_model(model, &self.sys)
-        });
+        self.contact = colliders.map(|c| NewtonContact::new(c, &self.sys));
         self
     }
 
@@ -1005,7 +1002,7 @@ impl StepSolver for NewtonSolver {
 mod tests {
     use super::*;
     use crate::cloth::preset::lab_cloth;
-    use crate::cloth::{ClothModel, StepParams};
+    use crate::cloth::StepParams;
 
     fn lab_system(n: u32) -> (ReducedSystem, Vec<DVec3>) {
         lab_system_pinned(n, true)
@@ -1016,14 +1013,14 @@ mod tests {
     /// and leaves one that is farther above it than the reach where it is.
     #[test]
     fn a_held_particle_sliding_over_a_ball_settles_back_onto_its_layer() {
-        use crate::cloth::collide::shapes::Ball;
+        use crate::cloth::collide::{shapes::Ball, ContactModel};
         let (sys, _) = lab_system(4);
         let (centre, radius, t) = (DVec3::new(0.1, -0.2, 0.3), 0.3, 0.003);
         let colliders = Colliders {
             shapes: vec![Collider::Sphere(Ball { centre, radius })],
             thickness: t,
             friction: 0.3,
-            model: Default::default(),
+            model: ContactModel::Constraint,
         };
         let mut contact = NewtonContact::new(colliders, &sys);
         let on = centre + DVec3::Y * (radius + t);
@@ -1052,38 +1049,13 @@ mod tests {
             damping: 0.2,
             gravity: DVec3::new(0.0, -0.3, 0.0),
         };
-        grid_system(n, 100.0, 1.0, pins, params)
+        lab_cloth(n, 100.0).system(1.0, pins, params)
     }
 
     /// The lab grid with every particle of mass `mass` (kg) and springs of `k` N/m, its two
-    /// corners pinned or not.
-    fn grid_system(
-        n: u32,
-        k: f64,
-        mass: f64,
-        pins: bool,
-        params: StepParams,
-    ) -> (ReducedSystem, Vec<DVec3>) {
-        let lab = lab_cloth(n, k);
-        let count = lab.mesh.positions.len();
-        let pinned = if pins {
-            lab.pinned_flags()
-        } else {
-            vec![false; count]
-        };
-        let model = ClothModel::new(lab.mesh, lab.springs, vec![mass; count], pinned).unwrap();
-        let sys = ReducedSystem::new(&model, params).unwrap();
-        let x = sys.gather(model.positions());
-        (sys, x)
-    }
-
-    /// A garment's step: 30 fps, no damping, full gravity.
-    fn garment_params() -> StepParams {
-        StepParams {
-            time_step: 1.0 / 30.0,
-            damping: 0.0,
-            gravity: DVec3::new(0.0, -9.81, 0.0),
-        }
+    /// corners pinned or not, at a garment's step.
+    fn grid_system(n: u32, k: f64, mass: f64, pins: bool) -> (ReducedSystem, Vec<DVec3>) {
+        lab_cloth(n, k).system(mass, pins, StepParams::garment())
     }
 
     /// A deterministic, non-trivial configuration: some springs stretched, some compressed.
@@ -1174,7 +1146,7 @@ mod tests {
     /// twice that of each other.
     #[test]
     fn single_and_double_precision_factors_reach_the_same_positions() {
-        let (sys, x0) = grid_system(12, 100.0, 0.01, true, garment_params());
+        let (sys, x0) = grid_system(12, 100.0, 0.01, true);
         let h = sys.params.time_step;
         let bound =
             2.0 * DEFAULT_TOLERANCE * sys.force_scale() / (sys.inertia_scale() * 0.01 / (h * h));
@@ -1224,7 +1196,7 @@ mod tests {
     #[test]
     fn ill_conditioned_steps_fall_back_to_the_double_factor() {
         for mass in [1e-6, 1e-9] {
-            let (sys, x0) = grid_system(8, 1.0e4, mass, false, garment_params());
+            let (sys, x0) = grid_system(8, 1.0e4, mass, false);
             let x0 = perturbed(&x0);
             let run = |single: bool| {
                 let mut solver = NewtonSolver::new(sys.clone(), 1e-6, 20)

@@ -28,6 +28,31 @@ impl LabCloth {
     }
 }
 
+#[cfg(test)]
+impl LabCloth {
+    /// This cloth as a solver's system, every particle `mass` kg, its two corners pinned or not,
+    /// stepped with `params`: the system and its free particles' positions (m).
+    pub(crate) fn system(
+        self,
+        mass: f64,
+        pins: bool,
+        params: super::StepParams,
+    ) -> (super::system::ReducedSystem, Vec<DVec3>) {
+        let count = self.mesh.positions.len();
+        let pinned = if pins {
+            self.pinned_flags()
+        } else {
+            vec![false; count]
+        };
+        let model = super::ClothModel::new(self.mesh, self.springs, vec![mass; count], pinned)
+            .expect("the lab cloth is a valid model");
+        let sys = super::system::ReducedSystem::new(&model, params)
+            .expect("the lab cloth's system orders and factors");
+        let x = sys.gather(model.positions());
+        (sys, x)
+    }
+}
+
 /// Lab values.
 pub mod defaults {
     /// Mass per particle, kg.

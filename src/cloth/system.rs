@@ -32,6 +32,18 @@ pub struct StepParams {
     pub gravity: DVec3,
 }
 
+#[cfg(test)]
+impl StepParams {
+    /// A garment's step in tests: 30 steps a second, no damping, full gravity.
+    pub(crate) fn garment() -> Self {
+        StepParams {
+            time_step: 1.0 / 30.0,
+            damping: 0.0,
+            gravity: DVec3::new(0.0, -9.81, 0.0),
+        }
+    }
+}
+
 /// Springs between two free particles, structure of arrays, solver indices.
 #[derive(Debug, Clone, Default)]
 pub struct FreeSprings {

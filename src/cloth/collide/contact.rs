@@ -241,8 +241,15 @@ fn barrier_band(layer: f64) -> (f64, f64) {
 const CLEAR_REACH: f64 = 16.0;
 
 impl NewtonContact {
-    /// Contact for `sys`'s particles.
+    /// Contact for `sys`'s particles, by the colliders' model ([`Colliders::model`]).
     pub fn new(colliders: Colliders, sys: &ReducedSystem) -> Self {
+        let barrier = match colliders.model {
+            ContactModel::Constraint => Vec::new(),
+            ContactModel::Barrier => {
+                let c = BARRIER_HOLD / -barrier_shape(0.5).1;
+                sys.mass.iter().map(|m| c * m * G0).collect()
+            }
+        };
         NewtonContact {
             colliders,
             slip_scale: STATIC_SLIP_SPEED * sys.params.time_step,
@@ -251,7 +258,7 @@ impl NewtonContact {
             layer: Vec::new(),
             carry: Vec::new(),
             clear: Vec::new(),
-            barrier: Vec::new(),
+            barrier,
             iterate: vec![DVec3::ZERO; sys.len()],
             seat: Vec::new(),
         }
@@ -261,19 +268,6 @@ impl NewtonContact {
     /// [`ContactModel::Barrier`]); [`NewtonContact::begin_step`] sets it to the step's start.
     pub fn set_iterate(&mut self, x: &[DVec3]) {
         self.iterate.copy_from_slice(x);
-    }
-
-    /// Chooses the contact model (the constraint unless told: [`NewtonContact::new`] alone
-    /// makes a constraint).
-    pub fn with_model(mut self, model: ContactModel, sys: &ReducedSystem) -> Self {
-        self.barrier = match model {
-            ContactModel::Constraint => Vec::new(),
-            ContactModel::Barrier => {
-                let c = BARRIER_HOLD / -barrier_shape(0.5).1;
-                sys.mass.iter().map(|m| c * m * G0).collect()
-            }
-        };
-        self
     }
 
     /// True when contact is a barrier energy ([`ContactModel::Barrier`]).
@@ -326,11 +320,16 @@ impl NewtonContact {
         const ROUNDS: usize = 4;
         let mut behind = 0;
         for (i, p) in x.iter_mut().enumerate() {
+            let mut feasible = false;
             for _ in 0..ROUNDS {
-                if self.barrier_contacts(i, *p, |_, _, _, _| {}) {
+                feasible = self.barrier_contacts(i, *p, |_, _, _, _| {});
+                if feasible {
                     break;
                 }
                 self.project(i, p);
+            }
+            if feasible {
+                continue;
             }
             let at = self.iterate[i];
             for (j, shape) in self.colliders.shapes.iter().enumerate() {
@@ -434,40 +433,41 @@ impl NewtonContact {
                 }
             }
         }
+        // One query per particle and collider serves both the clearance from a mesh (up to
+        // CLEAR_REACH thicknesses) and, with the barrier on static colliders, the seat (up to
+        // the band's top, within that reach: a layer is at most the thickness).
+        let seats = self.is_barrier() && self.carry.is_empty();
+        let reach = CLEAR_REACH * self.colliders.thickness;
+        let mut clear = std::mem::take(&mut self.clear);
         let mut seat = std::mem::take(&mut self.seat);
+        clear.clear();
         seat.clear();
-        if self.is_barrier() && self.carry.is_empty() {
-            for i in 0..x0.len() {
-                for (j, shape) in self.colliders.shapes.iter().enumerate() {
-                    let layer = self.layer(i, j);
-                    let (lo, width) = barrier_band(layer);
-                    let from = self.from(i, j);
-                    seat.push(match shape.contact(from, from, lo + width) {
+        for i in 0..x0.len() {
+            for (j, shape) in self.colliders.shapes.iter().enumerate() {
+                let mesh = matches!(shape, Collider::Mesh(_) | Collider::Moving { .. });
+                let layer = self.layer(i, j);
+                let (lo, width) = barrier_band(layer);
+                let from = self.from(i, j);
+                let surface = match (mesh, seats) {
+                    (true, _) => shape.contact(from, from, reach),
+                    (false, true) => shape.contact(from, from, lo + width),
+                    (false, false) => None,
+                };
+                clear.push(match (mesh, surface) {
+                    (false, _) => 0.0,
+                    (true, None) => reach,
+                    (true, Some(s)) => s.distance.max(0.0),
+                });
+                if seats {
+                    seat.push(match surface {
                         Some(s) if s.distance > lo && s.distance < lo + width => s.distance,
                         _ => layer,
                     });
                 }
             }
         }
-        self.seat = seat;
-        let reach = CLEAR_REACH * self.colliders.thickness;
-        let mut clear = std::mem::take(&mut self.clear);
-        clear.clear();
-        for i in 0..x0.len() {
-            for (j, shape) in self.colliders.shapes.iter().enumerate() {
-                clear.push(match shape {
-                    Collider::Mesh(_) | Collider::Moving { .. } => {
-                        let from = self.from(i, j);
-                        match shape.contact(from, from, reach) {
-                            None => reach,
-                            Some(s) => s.distance.max(0.0),
-                        }
-                    }
-                    _ => 0.0,
-                });
-            }
-        }
         self.clear = clear;
+        self.seat = seat;
     }
 
     /// True when a query of collider `j` for particle `i` at `p`, from `from` (where it starts
@@ -803,7 +803,7 @@ mod tests {
     use crate::cloth::collide::mesh::MeshCollider;
     use crate::cloth::collide::HalfSpace;
     use crate::cloth::preset::lab_cloth;
-    use crate::cloth::{ClothModel, StepParams};
+    use crate::cloth::StepParams;
     use crate::data::statics::StaticMesh;
 
     /// A closed sphere mesh of radius 0.3 m around the origin (the exporter's, see
@@ -819,18 +819,11 @@ mod tests {
         Collider::Mesh(Arc::new(MeshCollider::new(v, t).unwrap()))
     }
 
-    /// The lab cloth's n×n grid, nothing pinned, every particle `mass` kg, at 30 steps a second.
+    /// The lab cloth's n×n grid, nothing pinned, every particle `mass` kg, at a garment's step.
     fn lab_system(n: u32, mass: f64) -> ReducedSystem {
-        let lab = lab_cloth(n, 100.0);
-        let count = lab.mesh.positions.len();
-        let model =
-            ClothModel::new(lab.mesh, lab.springs, vec![mass; count], vec![false; count]).unwrap();
-        let params = StepParams {
-            time_step: 1.0 / 30.0,
-            damping: 0.0,
-            gravity: DVec3::new(0.0, -9.81, 0.0),
-        };
-        ReducedSystem::new(&model, params).unwrap()
+        lab_cloth(n, 100.0)
+            .system(mass, false, StepParams::garment())
+            .0
     }
 
     /// β′ and β″ are the derivatives of β (central differences), the barrier starts smoothly
@@ -891,8 +884,7 @@ mod tests {
                     }
                 })
                 .collect();
-            let mut contact =
-                NewtonContact::new(colliders, &sys).with_model(ContactModel::Barrier, &sys);
+            let mut contact = NewtonContact::new(colliders, &sys);
             // The step starts two thicknesses farther out (so every layer is the thickness) and
             // x is the current iterate.
             let normal_at = |p: DVec3| if plane { DVec3::Y } else { p.normalize() };
@@ -955,7 +947,7 @@ mod tests {
             shapes: vec![ball_mesh()],
             thickness: 0.004,
             friction: 0.3,
-            model: Default::default(),
+            model: ContactModel::Constraint,
         };
         // Start points on rays out of the centre, 0.302 m to 1.3 m from it.
         let x0: Vec<DVec3> = (0..n)
