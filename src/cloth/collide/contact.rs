@@ -809,14 +809,91 @@ mod tests {
     /// A closed sphere mesh of radius 0.3 m around the origin (the exporter's, see
     /// [`StaticMesh::sphere`]), as a mesh collider.
     fn ball_mesh() -> Collider {
-        let ball = StaticMesh::sphere(DVec3::ZERO, 0.3, "ball");
-        let v = ball.positions.iter().map(|p| p.as_dvec3()).collect();
-        let t = ball
+        mesh_collider(&StaticMesh::sphere(DVec3::ZERO, 0.3, "ball"))
+    }
+
+    /// An exporter's static mesh as a mesh collider.
+    fn mesh_collider(mesh: &StaticMesh) -> Collider {
+        let v = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+        let t = mesh
             .indices
             .chunks_exact(3)
             .map(|t| [t[0], t[1], t[2]])
             .collect();
         Collider::Mesh(Arc::new(MeshCollider::new(v, t).unwrap()))
+    }
+
+    /// With the barrier, a particle that starts a step resting inside its band and is moved
+    /// closer (as the step's predicted start moves a resting particle by h²g) is projected back
+    /// to the distance it started at, not to its layer; with the constraint, to its layer.
+    #[test]
+    fn a_resting_particle_is_projected_back_to_where_it_rested() {
+        let sys = lab_system(3, 2e-4);
+        let t = 0.004;
+        let rested = 1.3 * t;
+        for (model, expected) in [
+            (ContactModel::Barrier, rested),
+            (ContactModel::Constraint, t),
+        ] {
+            let colliders = Colliders {
+                shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
+                thickness: t,
+                friction: 0.0,
+                model,
+            };
+            let mut contact = NewtonContact::new(colliders, &sys);
+            let start: Vec<DVec3> = (0..sys.len())
+                .map(|i| DVec3::new(0.01 * i as f64, rested, 0.0))
+                .collect();
+            contact.begin_step(&start);
+            let mut p = start[0] - DVec3::Y * 0.8 * t;
+            contact.project(0, &mut p);
+            assert!(
+                (p.y - expected).abs() < 1e-12,
+                "{model:?}: projected to {} m, expected {expected} m",
+                p.y
+            );
+        }
+    }
+
+    /// A barrier judges a line-search trial along the path from the last accepted iterate, not
+    /// from the step's start: a particle that started beside a table top's edge and has reached
+    /// the underside (without crossing the top) may move a little further under it, although
+    /// the straight line from where it started to there cuts through the top's edge; a trial
+    /// that does enter the top is infeasible.
+    #[test]
+    fn a_barrier_trial_is_judged_along_the_path_from_the_last_iterate() {
+        let top = StaticMesh::cuboid(
+            DVec3::new(-0.6, 0.71, -0.4),
+            DVec3::new(0.6, 0.75, 0.4),
+            "table top",
+        );
+        let sys = lab_system(3, 2e-4);
+        let colliders = Colliders {
+            shapes: vec![mesh_collider(&top)],
+            thickness: 0.004,
+            friction: 0.0,
+            model: ContactModel::Barrier,
+        };
+        let mut contact = NewtonContact::new(colliders, &sys);
+        // Every other particle far above the table.
+        let far = |i: usize| DVec3::new(0.05 * i as f64, 5.0, 0.0);
+        let mut start: Vec<DVec3> = (0..sys.len()).map(far).collect();
+        start[0] = DVec3::new(0.0, 0.72, 0.41); // 1 cm beside the top's side face
+        contact.begin_step(&start);
+        let mut x = start.clone();
+        x[0] = DVec3::new(0.0, 0.705, 0.39); // 5 mm under the top, inside the band (2–6 mm)
+        contact.set_iterate(&x);
+        assert!(contact.energy(&x).is_finite());
+        let mut further = x.clone();
+        further[0] = DVec3::new(0.0, 0.7048, 0.385);
+        assert!(
+            contact.energy(&further).is_finite(),
+            "a trial reached from the iterate without crossing anything is feasible"
+        );
+        let mut inside = x.clone();
+        inside[0] = DVec3::new(0.0, 0.72, 0.39);
+        assert_eq!(contact.energy(&inside), f64::INFINITY);
     }
 
     /// The lab cloth's n×n grid, nothing pinned, every particle `mass` kg, at a garment's step.
