@@ -8,7 +8,8 @@ use std::path::Path;
 use common::morph::reference_with_pins as reference;
 use common::{mesh_path, names_in};
 use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothSource};
-use scenebake::glam::Vec3;
+use scenebake::cloth::collide::{ColliderSpec, ContactModel};
+use scenebake::glam::{DVec3, Vec3};
 
 struct Loaded {
     base: Vec<[f32; 3]>,
@@ -204,6 +205,31 @@ fn step_interpolation_and_no_normals_are_honoured() {
     let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
     assert!(prim.get(&gltf::Semantic::Normals).is_none());
     assert!(prim.morph_targets().all(|t| t.normals().is_none()));
+}
+
+/// Cloth that starts where the barrier cannot hold it (inside one of two solid half-spaces
+/// 1 mm apart, closer than the 3 mm thickness, so pushing a particle out of one puts it behind
+/// the other) is an error naming the time step, and nothing is written.
+#[test]
+fn cloth_starting_behind_a_barrier_is_an_error_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("squeezed.glb");
+    let mut job = ClothJob::new(ClothSource::LabCloth { resolution: 4 }, out.clone());
+    job.frames = Some(2);
+    // The lab grid lies in the plane y = 1.5: solid below 1.5005 and above 1.5015.
+    job.collider = vec![
+        ColliderSpec::Plane(DVec3::Y, 1.5005),
+        ColliderSpec::Plane(-DVec3::Y, -1.5015),
+    ];
+    job.thickness = Some(0.003);
+    job.contact = Some(ContactModel::Barrier);
+    let err = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
+    assert!(err.contains("diverged at frame 1"), "{err}");
+    assert!(
+        err.contains("start time step 1 behind a collider's surface"),
+        "{err}"
+    );
+    assert!(names_in(dir.path()).is_empty(), "nothing written");
 }
 
 /// A bake that runs for a while and then diverges writes nothing: the earlier export stays as it
