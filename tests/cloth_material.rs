@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use scenebake::bake::cloth::{prepare_cloth, ClothJob, ClothSource, PreparedCloth};
 use scenebake::cloth::material::DEFAULT_JAM_STRAIN;
 use scenebake::cloth::pins::PinSpec;
-use scenebake::cloth::system::JAM_RAMP;
+use scenebake::cloth::system::{JAM_RAMP, TOE_STRAIN};
 use scenebake::cloth::{make_solver, simulate};
 use scenebake::glam::DVec3;
 
@@ -17,9 +17,10 @@ use scenebake::glam::DVec3;
 /// the model's springs, bending stencils and masses with this file's own formulas:
 /// ∇g = s·m/h²·(x − y) + Σ k(|r| − l)·r/|r| + Σ wᵢ(Σ wⱼxⱼ − target), y = x₋₁ + (h·v + h²·g)/s,
 /// the bending target the rest mesh's curvature turned by each hinge's frame at x₋₁, springs
-/// jamming around the compression strain `jam`: the tension stiffness adds back along a linear
-/// ramp from (1 − JAM_RAMP)·jam to (1 + JAM_RAMP)·jam. Also returns how many springs are on or
-/// past their ramp.
+/// jamming around the compression strain `jam`: the tension stiffness adds back along a
+/// smoothstep ramp from (1 − JAM_RAMP)·jam to (1 + JAM_RAMP)·jam; and with a toe in tension:
+/// the stiffness rises linearly from kc to k over the first TOE_STRAIN of stretch. Also returns
+/// how many springs are on or past their ramp.
 fn recomputed_residual(
     p: &PreparedCloth,
     jam: f64,
@@ -44,26 +45,36 @@ fn recomputed_residual(
         let r = x[a] - x[b];
         let len = r.length();
         let e = len - sp.rest;
-        // Tension k·e; compression kc·e, minus k·∫ramp once jamming (kc < k): with the
-        // compression c = −e and the ramp [c0, c1], ∫ = (c − c0)²/(2(c1 − c0)) on the ramp and
-        // (c1 − c0)/2 + (c − c1) past it.
+        // Tension k·e, or with a toe t (kc < k) ∫₀ᵉ stiffness: kc·e + (k − kc)·e²/(2t) within
+        // it and kc·t + (k − kc)·t/2 + k·(e − t) past it; compression kc·e, minus k·∫ramp once
+        // jamming (kc < k): with the compression c = −e, the ramp [c0, c1] of width w and
+        // σ = (c − c0)/w, ∫ (3σ² − 2σ³) dc = w·(σ³ − σ⁴/2) on the ramp and w/2 + (c − c1) past it.
         let (c0, c1) = (
             (1.0 - JAM_RAMP) * jam * sp.rest,
             (1.0 + JAM_RAMP) * jam * sp.rest,
         );
-        let tension = if e >= 0.0 {
-            sp.stiffness * e
-        } else if sp.compression < sp.stiffness && -e > c0 {
-            jammed += 1;
-            let c = -e;
-            let ramp = if c < c1 {
-                (c - c0).powi(2) / (2.0 * (c1 - c0))
+        let toe = TOE_STRAIN * sp.rest;
+        let (k, kc) = (sp.stiffness, sp.compression);
+        let tension = if e >= 0.0 && kc < k {
+            if e < toe {
+                kc * e + (k - kc) * e * e / (2.0 * toe)
             } else {
-                (c1 - c0) / 2.0 + (c - c1)
+                kc * toe + (k - kc) * toe / 2.0 + k * (e - toe)
+            }
+        } else if e >= 0.0 {
+            k * e
+        } else if kc < k && -e > c0 {
+            jammed += 1;
+            let (c, w) = (-e, c1 - c0);
+            let ramp = if c < c1 {
+                let sigma = (c - c0) / w;
+                w * (sigma.powi(3) - sigma.powi(4) / 2.0)
+            } else {
+                w / 2.0 + (c - c1)
             };
-            sp.compression * e - sp.stiffness * ramp
+            kc * e - k * ramp
         } else {
-            sp.compression * e
+            kc * e
         };
         let f = r * (tension / len);
         grad[a] += f;

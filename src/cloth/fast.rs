@@ -25,7 +25,7 @@ use sprs::CsMat;
 use super::collide::contact::{self, Hold};
 use super::collide::{Collider, Colliders, SurfacePoint};
 use super::factor::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
-use super::system::{jam_ramp, spring_response, FreeBends, ReducedSystem, PINNED};
+use super::system::{jam_ramp, spring_response, FreeBends, ReducedSystem, PINNED, TOE_STRAIN};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
 use crate::param::Param;
@@ -192,7 +192,7 @@ impl FastSolver {
             hkl: sp.k.iter().zip(&sp.rest).map(|(k, l)| h2 * k * l).collect(),
             hk: sp.k.iter().map(|k| h2 * k).collect(),
             soft: sp.kc.iter().zip(&sp.k).map(|(kc, k)| kc / k).collect(),
-            jam: JamRamps::new(&sp.rest, &sp.k, &sp.kc, sys.jam_strain),
+            jam: JamRamps::new(&sp.rest, &sp.k, &sp.kc, sys.jam_strain, TOE_STRAIN),
             hk_anchor: sys.anchors.k.iter().map(|k| h2 * k).collect(),
             sm: sys.mass.iter().map(|m| s * m).collect(),
             pos: vec![Lanes4::default(); n],
@@ -519,11 +519,13 @@ fn solve_single(
     Lanes4(used.map(|s| 1.0 / s))
 }
 
-/// The free springs' jamming ramps in the form the spring kernels evaluate: for a spring
-/// compressed by t = l − |d| (m), the integral of the ramp of
-/// [`super::system::spring_response`], `push` = m²/(2w) + (a − m) with a = max(t − lo, 0) and
-/// m = min(a, w), so that its jammed push is h²k·push/|d|·d. A spring that never jams has
-/// lo = ∞ and pushes nothing.
+/// The free springs' toes and jamming ramps in the form the spring kernels evaluate (see
+/// [`super::system::spring_response`]). For a spring compressed by t = l − |d| (m), the
+/// integral of its smoothstep ramp, `push` = m·s²·(1 − s/2) + (a − m) with a = max(t − lo, 0),
+/// m = min(a, w) and s = m/w, so that its jammed push is h²k·push/|d|·d. For a spring stretched
+/// by e = |d| − l, the toe's deficit `toe_push` = m − m²/(2τ) with m = min(max(e, 0), τ), τ the
+/// toe, so that the toe's pull is less by h²(k − kc)·toe_push/|d|·d. A spring that never jams
+/// (kc = k) has lo = ∞ and τ = 0 and pushes nothing.
 #[derive(Debug, Clone)]
 struct JamRamps {
     /// Rest length l, m.
@@ -532,25 +534,36 @@ struct JamRamps {
     lo: Vec<f64>,
     /// The ramp's width w, m.
     width: Vec<f64>,
-    /// 1/(2w), 1/m (0 for a spring that never jams).
+    /// 1/w, 1/m (0 for a spring that never jams).
     inv: Vec<f64>,
+    /// The toe τ, m (0 for a spring that never jams).
+    toe: Vec<f64>,
+    /// 1/(2τ), 1/m (0 for a spring that never jams).
+    toe_inv: Vec<f64>,
 }
 
 impl JamRamps {
-    fn new(rest: &[f64], k: &[f64], kc: &[f64], jam: f64) -> Self {
+    /// Ramps from a compression of (1 − [`super::system::JAM_RAMP`])·`jam`·l to
+    /// (1 + JAM_RAMP)·`jam`·l and toes of `toe`·l for the springs softer in compression
+    /// (kc < k).
+    fn new(rest: &[f64], k: &[f64], kc: &[f64], jam: f64, toe: f64) -> Self {
         let n = rest.len();
         let mut r = JamRamps {
             rest: rest.to_vec(),
             lo: vec![f64::INFINITY; n],
             width: vec![0.0; n],
             inv: vec![0.0; n],
+            toe: vec![0.0; n],
+            toe_inv: vec![0.0; n],
         };
         for i in 0..n {
             if kc[i] < k[i] {
                 let (lo, hi) = jam_ramp(rest[i], jam);
                 r.lo[i] = lo;
                 r.width[i] = hi - lo;
-                r.inv[i] = 0.5 / (hi - lo);
+                r.inv[i] = 1.0 / (hi - lo);
+                r.toe[i] = toe * rest[i];
+                r.toe_inv[i] = 0.5 / (toe * rest[i]);
             }
         }
         r
@@ -561,14 +574,23 @@ impl JamRamps {
     fn push(&self, i: usize, len: f64) -> f64 {
         let a = (self.rest[i] - len - self.lo[i]).max(0.0);
         let m = a.min(self.width[i]);
-        m * m * self.inv[i] + (a - m)
+        let s = m * self.inv[i];
+        m * s * s * (1.0 - 0.5 * s) + (a - m)
+    }
+
+    /// The toe's deficit (m) of spring `i` at length `len` (m).
+    #[inline(always)]
+    fn toe_push(&self, i: usize, len: f64) -> f64 {
+        let m = (len - self.rest[i]).max(0.0).min(self.toe[i]);
+        m - m * m * self.toe_inv[i]
     }
 }
 
 /// The springs' part of [`FastSolver::residual_step`] from spring `first` on: h²k·(l/|d| − 1)·d
 /// added to end a and subtracted from end b (d = xa − xb; coincident ends pull nothing), scaled
 /// by `soft` = kc/k where the spring is compressed (l/|d| > 1), plus the jammed push
-/// h²k·p/|d|·d with p = [`JamRamps::push`] at |d|.
+/// h²k·p/|d|·d with p = [`JamRamps::push`] at |d|; where it is stretched, plus the toe's
+/// deficit h²k·(1 − soft)·p/|d|·d with p = [`JamRamps::toe_push`].
 fn springs_scalar(
     x: &[Lanes4],
     r: &mut [Lanes4],
@@ -587,6 +609,8 @@ fn springs_scalar(
             let mut c = hkl[i] / len - hk[i];
             if c > 0.0 {
                 c = c * soft[i] + hk[i] * jam.push(i, len) / len;
+            } else {
+                c += hk[i] * (1.0 - soft[i]) * jam.toe_push(i, len) / len;
             }
             let f = d * c;
             r[a] += f;
@@ -622,11 +646,13 @@ unsafe fn springs_avx2(
         &hk[..4 * quads],
         &soft[..4 * quads],
     );
-    let (jam_rest, jam_lo, jam_width, jam_inv) = (
+    let (jam_rest, jam_lo, jam_width, jam_inv, toe, toe_inv) = (
         &jam.rest[..4 * quads],
         &jam.lo[..4 * quads],
         &jam.width[..4 * quads],
         &jam.inv[..4 * quads],
+        &jam.toe[..4 * quads],
+        &jam.toe_inv[..4 * quads],
     );
     debug_assert!(x.len() == r.len());
     debug_assert!(ends.iter().flatten().all(|&i| (i as usize) < x.len()));
@@ -653,25 +679,36 @@ unsafe fn springs_avx2(
                 hkq,
             );
             // Compressed springs (c > 0) push with kc instead of k, c·(kc/k), plus the jammed
-            // push h²k·JamRamps::push/|d|, in the scalar code's order.
+            // push h²k·JamRamps::push/|d|; stretched ones pull less by the toe's deficit
+            // h²k·(1 − kc/k)·JamRamps::toe_push/|d|; in the scalar code's order.
             let compressed = _mm256_cmp_pd(c, _mm256_setzero_pd(), _CMP_GT_OQ);
             let load = |v: &[f64]| _mm256_loadu_pd(v.as_ptr().add(4 * q));
-            let a = _mm256_max_pd(
-                _mm256_sub_pd(_mm256_sub_pd(load(jam_rest), len), load(jam_lo)),
-                _mm256_setzero_pd(),
-            );
+            let zero = _mm256_setzero_pd();
+            let rest = load(jam_rest);
+            let a = _mm256_max_pd(_mm256_sub_pd(_mm256_sub_pd(rest, len), load(jam_lo)), zero);
             let m = _mm256_min_pd(a, load(jam_width));
+            let s = _mm256_mul_pd(m, load(jam_inv));
             let push = _mm256_add_pd(
-                _mm256_mul_pd(_mm256_mul_pd(m, m), load(jam_inv)),
+                _mm256_mul_pd(
+                    _mm256_mul_pd(_mm256_mul_pd(m, s), s),
+                    _mm256_sub_pd(_mm256_set1_pd(1.0), _mm256_mul_pd(_mm256_set1_pd(0.5), s)),
+                ),
                 _mm256_sub_pd(a, m),
             );
             let jam = _mm256_div_pd(_mm256_mul_pd(hkq, push), len);
-            let c = _mm256_blendv_pd(
-                c,
-                _mm256_add_pd(
-                    _mm256_mul_pd(c, _mm256_loadu_pd(soft.as_ptr().add(4 * q))),
-                    jam,
+            let softq = load(soft);
+            let t = _mm256_min_pd(_mm256_max_pd(_mm256_sub_pd(len, rest), zero), load(toe));
+            let toe_push = _mm256_sub_pd(t, _mm256_mul_pd(_mm256_mul_pd(t, t), load(toe_inv)));
+            let toe_pull = _mm256_div_pd(
+                _mm256_mul_pd(
+                    _mm256_mul_pd(hkq, _mm256_sub_pd(_mm256_set1_pd(1.0), softq)),
+                    toe_push,
                 ),
+                len,
+            );
+            let c = _mm256_blendv_pd(
+                _mm256_add_pd(c, toe_pull),
+                _mm256_add_pd(_mm256_mul_pd(c, softq), jam),
                 compressed,
             );
             // Coincident ends pull nothing (and l/0 is discarded).
@@ -1103,10 +1140,10 @@ mod tests {
         // Compression stiffness ratios from 0 to 1 (both branches of the blend are taken).
         let soft: Vec<f64> = (0..ends.len()).map(|i| (i % 5) as f64 / 4.0).collect();
         // Springs that jam (kc < k) at 30 % compression, with lengths before, on and past
-        // their ramps.
+        // their ramps, and toes of 50 % with stretches within and past them.
         let rest: Vec<f64> = hkl.iter().zip(&hk).map(|(a, b)| a / b).collect();
         let k = vec![1.0; ends.len()];
-        let jam = JamRamps::new(&rest, &k, &soft, 0.3);
+        let jam = JamRamps::new(&rest, &k, &soft, 0.3, 0.5);
         let regions = |lo: f64, hi: f64| {
             (0..ends.len())
                 .filter(|&i| {
@@ -1118,6 +1155,7 @@ mod tests {
                 .count()
         };
         assert!(regions(0.0, 0.225) > 0 && regions(0.225, 0.375) > 0 && regions(0.375, 1.0) > 0);
+        assert!(regions(-0.5, 0.0) > 0 && regions(f64::NEG_INFINITY, -0.5) > 0);
         let mut want = vec![Lanes4::from_vec3(DVec3::new(0.5, -0.25, 1.0)); n];
         let mut got = want.clone();
         let springs = (&ends[..], &hkl[..], &hk[..]);

@@ -40,8 +40,9 @@ pub struct Material {
     pub compression: f64,
     /// Jamming strain J: the compression strain (a fraction of the rest length, 0 < J < 1)
     /// around which an edge that is softer in compression gets its full tension stiffness added
-    /// back, along a ramp from (1 − [`super::system::JAM_RAMP`])·J to (1 + JAM_RAMP)·J, as yarns
-    /// pressed together do. Default [`DEFAULT_JAM_STRAIN`].
+    /// back, along a smoothstep ramp from (1 − [`super::system::JAM_RAMP`])·J to (1 + JAM_RAMP)·J,
+    /// as yarns pressed together do. (Such an edge also has a toe in tension,
+    /// [`super::system::TOE_STRAIN`].) Default [`DEFAULT_JAM_STRAIN`].
     pub jam_strain: f64,
     /// Bending rigidity B, N·m.
     pub bend: f64,
@@ -145,7 +146,8 @@ pub const FABRIC_COMPRESSION: f64 = 0.001;
 
 /// The default jamming strain of every preset ([`Material::jam_strain`], `--jam-strain`): a
 /// fabric edge compressed by about 8 % of its length resists with its tension stiffness, added
-/// back along a ramp from 4 % to 12 % ([`super::system::JAM_RAMP`]). Chosen by measurement on the
+/// back along a ramp from 4 % to 12 % ([`super::system::JAM_RAMP`]; linear when chosen, a
+/// smoothstep since stop 26). Chosen by measurement on the
 /// 8k-vertex skirt hanging from its waist, 30 frames, Newton to ρ ≤ 0.1 (`docs/performance.md`):
 /// J = 8 % ± 4 % took 466 Newton iterations with every edge within 6.5 %, against 645 and 9.4 %
 /// for the former sharp 9 % jam; 7 % ± 3.5 % took 493 (5.9 %), 10 % ± 5 % 501 (7.6 %), and a

@@ -440,32 +440,55 @@ impl ReducedSystem {
 }
 
 /// Half-width of the jamming ramp as a fraction of the jamming strain J: a spring softer in
-/// compression than in tension stiffens linearly from kc at a compression of (1 − JAM_RAMP)·J to
-/// kc + k at (1 + JAM_RAMP)·J, as yarns pressed together jam gradually. With a sharp step the
+/// compression than in tension stiffens from kc at a compression of (1 − JAM_RAMP)·J to kc + k
+/// at (1 + JAM_RAMP)·J, as yarns pressed together jam gradually. With a sharp step the
 /// tension's slope jumps from kc to kc + k (1000× for cotton), and Newton's quadratic model
 /// overshoots into the jammed region and backtracks: on the 8k-vertex skirt over 30 frames a
-/// sharp 9 % jam took 645 Newton iterations, a ramp of ±0.02 around it 467, and ±50 % around
-/// the default 8 % 466 (`docs/performance.md`).
+/// sharp 9 % jam took 645 Newton iterations, a linear ramp of ±0.02 around it 467, and ±50 %
+/// around the default 8 % 466 (`docs/performance.md`). The ramp is a smoothstep 3s² − 2s³ of
+/// s = (compression − start)/width, so the slope's own derivative is continuous too.
 pub const JAM_RAMP: f64 = 0.5;
 
+/// The toe of a spring softer in compression than in tension, as a fraction of its rest
+/// length: from the rest length to this stretch its stiffness rises linearly from kc to k, the
+/// low-strain toe of woven fabric's J-shaped tensile curve (the yarns' crimp straightening).
+/// Without it the tension's slope jumps from kc to k (1000× for cotton) at the rest length,
+/// where many springs of a draping garment sit; with it and the smoothstep jamming ramp
+/// ([`JAM_RAMP`]) the slope is continuous everywhere, and Newton on the 8k-vertex skirt hanging
+/// for 30 frames took 404 iterations instead of 451 (`docs/performance.md`). The toe lengthens a
+/// spring under a given tension by half the toe, (k − kc)/k · TOE_STRAIN/2 of its rest length.
+pub const TOE_STRAIN: f64 = 0.003;
+
 /// A spring's tension f (N, positive when stretched) and its derivative df/d|r| (N/m) at length
-/// `len`, with extension e = len − rest: f = k·e for e ≥ 0 and kc·e in compression. When kc < k
-/// the spring also jams: past a compression of (1 − [`JAM_RAMP`])·J·rest (J = `jam`, a fraction
-/// of the rest length) the full tension stiffness k is added back along a linear ramp that
-/// completes at (1 + JAM_RAMP)·J·rest, so df/d|r| is continuous in compression.
+/// `len`, with extension e = len − rest: f = k·e for e ≥ 0 and kc·e in compression, for
+/// symmetric springs (kc = k: the labs' model). When kc < k the spring has a toe and jams:
+/// - in tension its stiffness rises linearly from kc at the rest length to k at a stretch of
+///   [`TOE_STRAIN`]·rest and stays k beyond: f = k·e − (k − kc)·τ(e), τ the toe's deficit
+///   (e − e²/(2t) up to the toe t, t/2 past it);
+/// - in compression, past (1 − [`JAM_RAMP`])·J·rest (J = `jam`, a fraction of the rest length),
+///   the full tension stiffness k is added back along a smoothstep ramp that completes at
+///   (1 + JAM_RAMP)·J·rest.
+///
+/// So df/d|r| is continuous for every length.
 #[inline(always)]
 pub fn spring_response(len: f64, rest: f64, k: f64, kc: f64, jam: f64) -> (f64, f64) {
     let e = len - rest;
-    if e >= 0.0 {
-        (k * e, k)
-    } else if kc < k {
+    if kc >= k {
+        let stiffness = if e >= 0.0 { k } else { kc };
+        (stiffness * e, stiffness)
+    } else if e >= 0.0 {
+        let t = TOE_STRAIN * rest;
+        let m = e.min(t);
+        (
+            k * e - (k - kc) * (m - m * m / (2.0 * t)),
+            k - (k - kc) * (1.0 - m / t),
+        )
+    } else {
         let (lo, hi) = jam_ramp(rest, jam);
         (
             kc * e - k * ramp_integral(-e, lo, hi),
             kc + k * ramp(-e, lo, hi),
         )
-    } else {
-        (kc * e, kc)
     }
 }
 
@@ -473,13 +496,20 @@ pub fn spring_response(len: f64, rest: f64, k: f64, kc: f64, jam: f64) -> (f64, 
 #[inline]
 pub fn spring_energy(len: f64, rest: f64, k: f64, kc: f64, jam: f64) -> f64 {
     let e = len - rest;
-    if e >= 0.0 {
-        0.5 * k * e * e
-    } else if kc < k {
+    if kc >= k {
+        0.5 * (if e >= 0.0 { k } else { kc }) * e * e
+    } else if e >= 0.0 {
+        // ½k·e² less (k − kc)·∫τ, ∫τ = e²/2 − e³/(6t) up to the toe, t²/3 + t/2·(e − t) past it.
+        let t = TOE_STRAIN * rest;
+        let deficit = if e < t {
+            e * e / 2.0 - e * e * e / (6.0 * t)
+        } else {
+            t * t / 3.0 + t / 2.0 * (e - t)
+        };
+        0.5 * k * e * e - (k - kc) * deficit
+    } else {
         let (lo, hi) = jam_ramp(rest, jam);
         0.5 * kc * e * e + k * ramp_integral2(-e, lo, hi)
-    } else {
-        0.5 * kc * e * e
     }
 }
 
@@ -489,34 +519,40 @@ pub(crate) fn jam_ramp(rest: f64, jam: f64) -> (f64, f64) {
     ((1.0 - JAM_RAMP) * jam * rest, (1.0 + JAM_RAMP) * jam * rest)
 }
 
-/// The ramp from 0 at `lo` to 1 at `hi`, clamped outside.
+/// The smoothstep ramp 3s² − 2s³ from 0 at `lo` to 1 at `hi`, s = (t − lo)/(hi − lo) clamped
+/// to [0, 1].
 #[inline(always)]
 fn ramp(t: f64, lo: f64, hi: f64) -> f64 {
-    ((t - lo) / (hi - lo)).clamp(0.0, 1.0)
+    let s = ((t - lo) / (hi - lo)).clamp(0.0, 1.0);
+    s * s * (3.0 - 2.0 * s)
 }
 
-/// ∫ ramp from −∞ to t.
+/// ∫ ramp from −∞ to t: w·(s³ − s⁴/2) on the ramp (w = hi − lo), w/2 + (t − hi) past it.
 #[inline(always)]
 fn ramp_integral(t: f64, lo: f64, hi: f64) -> f64 {
+    let w = hi - lo;
     if t <= lo {
         0.0
     } else if t < hi {
-        (t - lo) * (t - lo) / (2.0 * (hi - lo))
+        let s = (t - lo) / w;
+        w * s * s * s * (1.0 - 0.5 * s)
     } else {
-        0.5 * (hi - lo) + (t - hi)
+        0.5 * w + (t - hi)
     }
 }
 
-/// ∫ [`ramp_integral`] from −∞ to t.
+/// ∫ [`ramp_integral`] from −∞ to t: w²·(s⁴/4 − s⁵/10) on the ramp, 3w²/20 + w/2·(t − hi) +
+/// (t − hi)²/2 past it.
 #[inline(always)]
 fn ramp_integral2(t: f64, lo: f64, hi: f64) -> f64 {
     let w = hi - lo;
     if t <= lo {
         0.0
     } else if t < hi {
-        (t - lo).powi(3) / (6.0 * w)
+        let s = (t - lo) / w;
+        w * w * s.powi(4) * (0.25 - 0.1 * s)
     } else {
-        w * w / 6.0 + 0.5 * w * (t - hi) + 0.5 * (t - hi) * (t - hi)
+        0.15 * w * w + 0.5 * w * (t - hi) + 0.5 * (t - hi) * (t - hi)
     }
 }
 
@@ -542,18 +578,27 @@ mod tests {
     use super::*;
 
     /// The tension is the derivative of the energy and its slope the derivative of the tension
-    /// (central differences), from tension through the soft compression, the jamming ramp and
-    /// past it; the slope is continuous in compression and reaches kc + k past the ramp.
+    /// (central differences), from past the toe in tension through the toe, the soft
+    /// compression, the jamming ramp and past it; the slope is continuous everywhere (between
+    /// neighbouring samples it changes by no more than its steepest rise, (k − kc)/t in the toe
+    /// and 1.5·k/w on the ramp, times their distance: the former jump of k − kc at the rest
+    /// length is 45 times that), is kc at the rest length and k past the toe, and reaches kc + k
+    /// past the ramp.
     #[test]
-    fn spring_response_is_the_energys_derivative_through_the_jamming_ramp() {
+    fn spring_response_is_the_energys_derivative_through_the_toe_and_the_jamming_ramp() {
         let (rest, k, kc, jam) = (0.01, 1000.0, 1.0, 0.08);
         let (lo, hi) = jam_ramp(rest, jam);
         assert!(lo < jam * rest && hi > jam * rest);
         assert!(((lo + hi) / 2.0 - jam * rest).abs() < 1e-15);
+        let toe = TOE_STRAIN * rest;
         let d = 1e-9;
-        let mut on_ramp = 0;
-        for i in 0..=300 {
-            let len = rest * (1.05 - 0.2 * i as f64 / 300.0);
+        let (mut on_ramp, mut in_toe) = (0, 0);
+        let samples = 3000;
+        let spacing = 0.2 * rest / samples as f64;
+        let steepest = ((k - kc) / toe).max(1.5 * k / (hi - lo));
+        let mut last_slope: Option<f64> = None;
+        for i in 0..=samples {
+            let len = rest * 1.05 - spacing * i as f64;
             let (f, slope) = spring_response(len, rest, k, kc, jam);
             let fd_f = (spring_energy(len + d, rest, k, kc, jam)
                 - spring_energy(len - d, rest, k, kc, jam))
@@ -562,25 +607,42 @@ mod tests {
                 - spring_response(len - d, rest, k, kc, jam).0)
                 / (2.0 * d);
             assert!((f - fd_f).abs() < 1e-6, "len {len}: f {f} vs {fd_f}");
-            if (len - rest).abs() > 2.0 * d {
+            assert!(
+                (slope - fd_slope).abs() < 1e-4 * k,
+                "len {len}: slope {slope} vs {fd_slope}"
+            );
+            if let Some(last) = last_slope {
                 assert!(
-                    (slope - fd_slope).abs() < 1e-4 * k,
-                    "len {len}: slope {slope} vs {fd_slope}"
+                    (slope - last).abs() <= steepest * spacing * 1.001,
+                    "len {len}: slope {slope} after {last}"
                 );
             }
-            let c = rest - len;
-            if c > lo && c < hi {
+            last_slope = Some(slope);
+            let e = len - rest;
+            if e > 0.0 && e < toe {
+                in_toe += 1;
+                assert!(slope >= kc && slope <= k);
+            }
+            if -e > lo && -e < hi {
                 on_ramp += 1;
-                assert!(slope > kc && slope < kc + k);
+                assert!(slope >= kc && slope <= kc + k);
             }
         }
-        assert!(on_ramp > 20);
+        assert!(on_ramp > 200 && in_toe > 20, "{on_ramp} {in_toe}");
+        assert!(k - kc > 40.0 * steepest * spacing);
+        assert_eq!(spring_response(rest, rest, k, kc, jam), (0.0, kc));
+        let past = rest * (1.0 + 2.0 * TOE_STRAIN);
+        let (f, slope) = spring_response(past, rest, k, kc, jam);
+        assert_eq!(slope, k);
+        assert!((f - (k * (past - rest) - (k - kc) * toe / 2.0)).abs() < 1e-12);
         assert_eq!(spring_response(rest - hi * 1.1, rest, k, kc, jam).1, kc + k);
         assert_eq!(spring_response(rest - lo * 0.9, rest, k, kc, jam).1, kc);
-        // Symmetric springs never jam.
+        // Symmetric springs never jam and have no toe.
         assert_eq!(
             spring_response(rest * 0.5, rest, k, k, jam),
             (-k * rest * 0.5, k)
         );
+        let len = rest + 0.5 * toe;
+        assert_eq!(spring_response(len, rest, k, k, jam), (k * (len - rest), k));
     }
 }
