@@ -5,6 +5,7 @@
 //! cargo bench --bench garments                 # every case, 10 frames
 //! cargo bench --bench garments -- skirt8K      # cases whose label contains "skirt8K"
 //! FRAMES=30 cargo bench --bench garments -- dress
+//! SWEEPS=0 cargo bench --bench garments        # every Newton case without Gauss–Seidel sweeps
 //! ```
 //!
 //! Prints one markdown row per case: iterations per step (median, max), ms per frame, the share
@@ -127,6 +128,7 @@ fn main() {
         .ok()
         .and_then(|f| f.parse().ok())
         .unwrap_or(10);
+    let sweeps: Option<usize> = std::env::var("SWEEPS").ok().and_then(|s| s.parse().ok());
     let filters: Vec<String> = std::env::args()
         .skip(1)
         .filter(|a| !a.starts_with("--"))
@@ -140,7 +142,11 @@ fn main() {
         if !filters.is_empty() && !filters.iter().any(|f| case.label.contains(f.as_str())) {
             continue;
         }
-        let result = simulate_cloth(&case.job, &mut |_, _| {});
+        let mut job = case.job.clone();
+        if let Some(sweeps) = sweeps {
+            job.sweeps = sweeps;
+        }
+        let result = simulate_cloth(&job, &mut |_, _| {});
         let SimulatedCloth {
             prepared,
             simulation,

@@ -60,6 +60,8 @@ params! {
     Iterations => "iterations",
     /// Newton's iteration cap.
     MaxNewton => "max_newton",
+    /// Newton's Gauss–Seidel sweeps per iteration.
+    Sweeps => "sweeps",
     /// A fabric preset.
     Material => "material",
     /// A fabric's stretch modulus.

@@ -114,6 +114,7 @@ fn particle_on_a_slope_obeys_coulomb() {
                 iterations: 10,
                 tolerance: 1e-10,
                 max_newton: newton::DEFAULT_MAX_ITERATIONS,
+                sweeps: newton::DEFAULT_SWEEPS,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(normal, 0.0).unwrap())],
                     thickness,
@@ -194,6 +195,7 @@ fn newton_keeps_a_particle_starting_inside_the_thickness_where_it_started() {
                 iterations: 10,
                 tolerance: 1e-10,
                 max_newton: newton::DEFAULT_MAX_ITERATIONS,
+                sweeps: newton::DEFAULT_SWEEPS,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
                     thickness,

@@ -18,6 +18,7 @@ fn params(solver: SolverKind, damping: f64, gravity: DVec3) -> BakeParams {
         iterations: 200,
         tolerance: 1e-12,
         max_newton: newton::DEFAULT_MAX_ITERATIONS,
+        sweeps: newton::DEFAULT_SWEEPS,
         colliders: Default::default(),
         wind: None,
     }

@@ -18,6 +18,7 @@ pub mod model;
 pub mod newton;
 pub mod pins;
 pub mod preset;
+pub mod smooth;
 pub mod springs;
 pub mod system;
 pub mod wind;
@@ -104,6 +105,8 @@ pub struct BakeParams {
     pub tolerance: f64,
     /// Newton iterations per step at most (default [`newton::DEFAULT_MAX_ITERATIONS`] = 50).
     pub max_newton: usize,
+    /// Gauss–Seidel sweeps after each Newton iteration ([`NewtonSolver::with_sweeps`]; 0: none).
+    pub sweeps: usize,
     /// What the cloth collides with (none when empty).
     pub colliders: Colliders,
     /// Aerodynamic forces, when any.
@@ -153,7 +156,9 @@ pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn St
                 .with_colliders(colliders),
         ),
         SolverKind::Newton => Box::new(
-            NewtonSolver::new(sys, params.tolerance, params.max_newton)?.with_colliders(colliders),
+            NewtonSolver::new(sys, params.tolerance, params.max_newton)?
+                .with_colliders(colliders)
+                .with_sweeps(params.sweeps),
         ),
     })
 }

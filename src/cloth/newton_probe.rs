@@ -200,6 +200,7 @@ fn probe() {
     let mut solver = NewtonSolver::new(sys, params.tolerance, cap)
         .unwrap()
         .single_precision(std::env::var("PROBE_DOUBLE").is_err())
+        .with_sweeps(env("PROBE_SWEEPS", crate::cloth::newton::DEFAULT_SWEEPS))
         .with_colliders(colliders);
     solver.record_history(true);
     let mut v = vec![DVec3::ZERO; x.len()];
@@ -212,7 +213,7 @@ fn probe() {
         println!(
             "step {step}: {stats:?} {:.2} s, directions (single, double) so far {:?}\n  ρ: {}\n  α: {}",
             t0.elapsed().as_secs_f64(),
-            solver.directions_by_precision(),
+            (solver.directions_by_precision(), solver.sweep_passes()),
             joined(solver.history(), |r| format!("{r:.2e}")),
             joined(solver.step_lengths(), |a| format!("{a:.3}"))
         );

@@ -163,6 +163,11 @@ pub struct ClothJob {
     #[cfg_attr(feature = "cli", arg(long, default_value_t = crate::cloth::newton::DEFAULT_MAX_ITERATIONS, value_name = "N"))]
     #[serde(alias = "max-newton")]
     pub max_newton: usize,
+    /// Newton: Gauss–Seidel sweeps (one local Newton step per particle) after each iteration;
+    /// 0 turns them off. They shorten Newton on stiff cloth without changing the tolerance a
+    /// step is solved to.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = crate::cloth::newton::DEFAULT_SWEEPS, value_name = "N"))]
+    pub sweeps: usize,
     /// The fabric of a surface mesh, mapped onto its edges by rest length and area [default:
     /// cotton].
     #[cfg_attr(feature = "cli", arg(long, value_enum))]
@@ -428,6 +433,7 @@ impl Default for ClothJob {
             max_iterations: None,
             iterations: defaults::ITERATIONS,
             max_newton: crate::cloth::newton::DEFAULT_MAX_ITERATIONS,
+            sweeps: crate::cloth::newton::DEFAULT_SWEEPS,
             material: None,
             stretch: None,
             bend: None,

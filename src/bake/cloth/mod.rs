@@ -315,6 +315,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         iterations: job.max_iterations.unwrap_or(job.iterations),
         tolerance: non_negative(Param::Tolerance, job.tolerance)?,
         max_newton: job.max_iterations.unwrap_or(job.max_newton),
+        sweeps: job.sweeps,
         colliders,
         wind,
     };
@@ -841,6 +842,10 @@ fn report(
         max_iterations: match params.solver {
             SolverKind::Fast => params.iterations,
             SolverKind::Newton => params.max_newton,
+        },
+        sweeps: match params.solver {
+            SolverKind::Fast => 0,
+            SolverKind::Newton => params.sweeps,
         },
         material: prepared.material.clone(),
         stiffness: prepared.stiffness,

@@ -28,7 +28,7 @@
 //!
 //! Positions are metres in the cloth's frame; forces newtons.
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 use super::{Collider, Colliders, SurfacePoint};
 use crate::cloth::system::ReducedSystem;
@@ -140,6 +140,25 @@ struct LaggedContact {
     force: f64,
 }
 
+/// A collider's surface near a particle as its tangent plane, for evaluating the barrier while
+/// the particle moves a little ([`NewtonContact::barrier_planes`]).
+#[derive(Debug, Clone, Copy)]
+pub struct BarrierPlane {
+    /// Unit normal, towards the free side.
+    normal: DVec3,
+    /// The signed distance of a point p from the plane is normal·p + offset, m.
+    offset: f64,
+    /// The band's bottom and width, m.
+    lo: f64,
+    width: f64,
+}
+
+/// a bᵀ.
+#[inline]
+fn outer3(a: DVec3, b: DVec3) -> DMat3 {
+    DMat3::from_cols(a * b.x, a * b.y, a * b.z)
+}
+
 /// Newton's contact constraints and friction for the free particles of a [`ReducedSystem`].
 ///
 /// Contact is a constraint, not an energy: every particle stays at least its layer (the
@@ -158,6 +177,9 @@ pub struct NewtonContact {
     /// Friction slip scale ε, m.
     slip_scale: f64,
     lagged: Vec<LaggedContact>,
+    /// Where each particle's entries in `lagged` (which is in particle order) start; length
+    /// n + 1.
+    lagged_start: Vec<u32>,
     x0: Vec<DVec3>,
     /// Per particle and collider (`i·shapes + j`): the distance it is kept at, m. The collision
     /// thickness, except for a particle that started closer to that collider (see
@@ -254,6 +276,7 @@ impl NewtonContact {
             colliders,
             slip_scale: STATIC_SLIP_SPEED * sys.params.time_step,
             lagged: Vec::new(),
+            lagged_start: vec![0; sys.len() + 1],
             x0: vec![DVec3::ZERO; sys.len()],
             layer: Vec::new(),
             carry: Vec::new(),
@@ -654,6 +677,90 @@ impl NewtonContact {
         barrier + friction
     }
 
+    /// Appends to `out` the barrier planes of particle `i` at `p`: for every collider whose
+    /// surface is within its band's top plus `margin` of `p`, the tangent plane at the nearest
+    /// surface point, for [`NewtonContact::particle_terms`] to evaluate the barrier against
+    /// while `p` moves by less than `margin`. On a convex collider the plane is never farther
+    /// than the surface, so a position the planes allow is feasible.
+    pub fn barrier_planes(&self, i: usize, p: DVec3, margin: f64, out: &mut Vec<BarrierPlane>) {
+        if self.barrier.is_empty() {
+            return;
+        }
+        let at = self.iterate[i];
+        for (j, shape) in self.colliders.shapes.iter().enumerate() {
+            let start = self.from(i, j);
+            let (lo, width) = barrier_band(self.layer(i, j));
+            let top = lo + width + margin;
+            if self.out_of_reach(i, j, top, p, start) && self.out_of_reach(i, j, top, at, start) {
+                continue;
+            }
+            let Some(s) = shape.contact(p, at, self.reach(top, p, at)) else {
+                continue;
+            };
+            if s.distance >= top {
+                continue;
+            }
+            out.push(BarrierPlane {
+                normal: s.normal,
+                offset: s.distance - s.normal.dot(p),
+                lo,
+                width,
+            });
+        }
+    }
+
+    /// Adds particle `i`'s terms of [`NewtonContact::energy`] at `p` to its gradient `g` and
+    /// Hessian block `h`, as [`NewtonContact::add_derivatives`] does for all particles, with the
+    /// barrier evaluated against `planes` ([`NewtonContact::barrier_planes`]); false, having
+    /// added nothing, when `p` is at or below a band's bottom.
+    pub fn particle_terms(
+        &self,
+        i: usize,
+        p: DVec3,
+        planes: &[BarrierPlane],
+        g: &mut DVec3,
+        h: &mut DMat3,
+    ) -> bool {
+        if let Some(c) = self.barrier.get(i) {
+            let (mut dg, mut dh) = (DVec3::ZERO, DMat3::ZERO);
+            for plane in planes {
+                let u = (plane.normal.dot(p) + plane.offset - plane.lo) / plane.width;
+                if u >= 1.0 {
+                    continue;
+                }
+                if u <= 0.0 {
+                    return false;
+                }
+                let (_, d1, d2) = barrier_shape(u);
+                let n = plane.normal;
+                dg += n * (c * d1);
+                dh += outer3(n, n * (c * d2 / plane.width));
+            }
+            *g += dg;
+            *h += dh;
+        }
+        let (mu, eps) = (self.colliders.friction, self.slip_scale);
+        let mine = self.lagged_start[i] as usize..self.lagged_start[i + 1] as usize;
+        for c in &self.lagged[mine] {
+            let d = p - self.from(i, c.shape as usize);
+            let slip = d - c.normal * d.dot(c.normal);
+            let u = slip.length();
+            let scale = mu * c.force;
+            // Tangent projector T = I − n nᵀ, scaled.
+            let tangent =
+                |w: f64| DMat3::from_diagonal(DVec3::splat(w)) - outer3(c.normal, c.normal * w);
+            if u < eps {
+                *g += slip * (scale / eps);
+                *h += tangent(scale / eps);
+            } else {
+                let dir = slip / u;
+                *g += dir * scale;
+                *h += tangent(scale / u) - outer3(dir, dir * (scale / u));
+            }
+        }
+        true
+    }
+
     /// Adds the gradient of [`NewtonContact::energy`] to `grad` and passes each particle's 3×3
     /// Hessian block (rows) to `block`.
     pub fn add_derivatives(
@@ -769,6 +876,13 @@ impl NewtonContact {
             }
         }
         let touching = lagged.len();
+        self.lagged_start.fill(0);
+        for c in &lagged {
+            self.lagged_start[c.particle as usize + 1] += 1;
+        }
+        for i in 1..self.lagged_start.len() {
+            self.lagged_start[i] += self.lagged_start[i - 1];
+        }
         self.lagged = lagged;
         touching
     }
@@ -1008,6 +1122,84 @@ mod tests {
             let s = contact.resting(0, x[0]).unwrap();
             under[0] -= s.normal * (s.distance - 0.45 * t);
             assert_eq!(contact.energy(&under), f64::INFINITY);
+        }
+    }
+
+    /// One particle's barrier and friction terms evaluated on its tangent planes
+    /// ([`NewtonContact::particle_terms`], [`NewtonContact::barrier_planes`] taken where it is)
+    /// equal its gradient and Hessian block from [`NewtonContact::add_derivatives`], for
+    /// particles in the band of a ball mesh, sliding in friction's static and kinetic regimes;
+    /// and a particle moved towards the surface past a band's bottom is refused.
+    #[test]
+    fn particle_terms_on_their_planes_equal_the_assembled_terms() {
+        let sys = lab_system(3, 2e-4);
+        let n = sys.len();
+        let t = 0.004;
+        let colliders = Colliders {
+            shapes: vec![ball_mesh()],
+            thickness: t,
+            friction: 0.3,
+            model: ContactModel::Barrier,
+        };
+        let x: Vec<DVec3> = (0..n)
+            .map(|i| {
+                let f = i as f64 / (n - 1) as f64;
+                let dir = DVec3::new((f * 5.0).sin(), 1.0, (f * 3.0).cos()).normalize();
+                dir * (0.3 + t * (0.55 + 0.9 * f))
+            })
+            .collect();
+        let mut contact = NewtonContact::new(colliders, &sys);
+        let start: Vec<DVec3> = x.iter().map(|p| *p + p.normalize() * 2.0 * t).collect();
+        // A step that ends at x leaves lagged friction at x for the next, which starts there.
+        contact.begin_step(&start);
+        contact.set_iterate(&x);
+        let touching = contact.end_step(&x, &vec![DVec3::ZERO; n]);
+        assert!(touching >= n / 2, "{touching} of {n} touching");
+        contact.begin_step(&x);
+        // Slides along the surface: static (below the slip scale) and kinetic.
+        for slide in [0.3 * contact.slip_scale, 1e-3] {
+            let moved: Vec<DVec3> = x
+                .iter()
+                .map(|p| *p + p.normalize().cross(DVec3::X).normalize() * slide)
+                .collect();
+            contact.set_iterate(&moved);
+            let mut grad = vec![DVec3::ZERO; n];
+            let mut blocks = vec![[[0.0; 3]; 3]; n];
+            contact.add_derivatives(&moved, &mut grad, |i, b| {
+                for r in 0..3 {
+                    for c in 0..3 {
+                        blocks[i][r][c] += b[r][c];
+                    }
+                }
+            });
+            let mut planes = Vec::new();
+            for (i, p) in moved.iter().enumerate() {
+                planes.clear();
+                contact.barrier_planes(i, *p, t, &mut planes);
+                let (mut g, mut h) = (DVec3::ZERO, DMat3::ZERO);
+                assert!(contact.particle_terms(i, *p, &planes, &mut g, &mut h));
+                let scale = grad[i].length().max(1e-12);
+                assert!(
+                    g.distance(grad[i]) < 1e-9 * scale,
+                    "slide {slide}, particle {i}: {g} vs {}",
+                    grad[i]
+                );
+                for (r, row) in blocks[i].iter().enumerate() {
+                    for (c, b) in row.iter().enumerate() {
+                        let ours = h.col(c)[r];
+                        assert!(
+                            (ours - b).abs() <= 1e-9 * (1.0 + b.abs()),
+                            "slide {slide}, particle {i}, ({r}, {c}): {ours} vs {b}"
+                        );
+                    }
+                }
+                if let Some(plane) = planes.first() {
+                    let (mut g, mut h) = (DVec3::ZERO, DMat3::ZERO);
+                    let distance = plane.normal.dot(*p) + plane.offset;
+                    let below = *p - plane.normal * (distance - 0.45 * t);
+                    assert!(!contact.particle_terms(i, below, &planes, &mut g, &mut h));
+                }
+            }
         }
     }
 
