@@ -86,7 +86,7 @@ pub const DEFAULT_TOLERANCE: f64 = 1e-8;
 /// Default Gauss–Seidel sweeps after each Newton iteration in a bake ([`NewtonSolver::with_sweeps`];
 /// `--sweeps`). Over 30 frames of the 8k-vertex skirt hanging from its waist: none 404 Newton
 /// iterations, 5 sweeps 203, 10 sweeps 173, 20 sweeps 152, the last the slowest of the three
-/// (a sweep costs about 1/40 of a factorisation, `docs/performance.md`).
+/// (a sweep costs about 1.6 ms there, a thirty-fifth of a factorisation; `docs/performance.md`).
 pub const DEFAULT_SWEEPS: usize = 10;
 
 /// Default cap on Newton iterations per time step.
