@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! cargo bench --bench character
+//! SWEEPS=0 cargo bench --bench character     # Newton without its Gauss–Seidel sweeps
 //! ```
 //!
 //! The Fox cape (`meshes/garments/fox_cape.obj`, 315 particles, 15 pinned) baked three ways in
@@ -29,7 +30,12 @@ fn main() {
         std::env::temp_dir().join(format!("scenebake-bench-character-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let pin: PinSpec = "box:-1,0.69,0.235,1,0.71,0.245".parse().unwrap();
+    let sweeps = std::env::var("SWEEPS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(scenebake::cloth::newton::DEFAULT_SWEEPS);
     let on_fox = ClothJob {
+        sweeps,
         input: Some(path("meshes/garments/fox_cape.obj")),
         output: dir.join("rig.glb"),
         rig: Some(path("meshes/Fox.glb")),
