@@ -184,6 +184,18 @@ fn the_same_fabric_moves_alike_on_a_coarse_and_a_fine_irregular_mesh() {
     assert!(worst < 0.03, "centroid paths {worst} m apart");
 }
 
+/// The circle skirt pinned at its waist, default cotton (nothing is written).
+fn hanging_circle_skirt() -> ClothJob {
+    let mut job = ClothJob::new(
+        ClothSource::File(common::crate_dir().join("meshes/garments/circle_skirt.obj")),
+        PathBuf::from("unused.glb"),
+    );
+    job.pin = vec!["box:-0.2,0.999,-0.2,0.2,1.001,0.2"
+        .parse::<PinSpec>()
+        .unwrap()];
+    job
+}
+
 /// Steps of the default bake of a garment end at or below the tolerance, measured by this
 /// file's own residual from the f64 positions, and steps above it are reported unconverged; the
 /// same with a low `--jam-strain` (3 %), which this file's residual takes from the job: springs
@@ -192,13 +204,7 @@ fn the_same_fabric_moves_alike_on_a_coarse_and_a_fine_irregular_mesh() {
 #[test]
 fn the_tolerance_is_honoured_on_a_garment() {
     for jam in [None, Some(0.03)] {
-        let mut job = ClothJob::new(
-            ClothSource::File(common::crate_dir().join("meshes/garments/circle_skirt.obj")),
-            PathBuf::from("unused.glb"),
-        );
-        job.pin = vec!["box:-0.2,0.999,-0.2,0.2,1.001,0.2"
-            .parse::<PinSpec>()
-            .unwrap()];
+        let mut job = hanging_circle_skirt();
         job.jam_strain = jam;
         let strain = jam.unwrap_or(DEFAULT_JAM_STRAIN);
         let p = prepare_cloth(&job).unwrap();
@@ -311,14 +317,7 @@ fn gauss_seidel_sweeps_shorten_newton_without_moving_its_solution() {
         "objective {before} -> {after}, minimum {floor}"
     );
 
-    let mut job = ClothJob::new(
-        ClothSource::File(common::crate_dir().join("meshes/garments/circle_skirt.obj")),
-        PathBuf::from("unused.glb"),
-    );
-    job.pin = vec!["box:-0.2,0.999,-0.2,0.2,1.001,0.2"
-        .parse::<PinSpec>()
-        .unwrap()];
-    let p = prepare_cloth(&job).unwrap();
+    let p = prepare_cloth(&hanging_circle_skirt()).unwrap();
     assert_eq!(p.params.sweeps, DEFAULT_SWEEPS);
     let mut with = make_solver(&p.model, &p.params).unwrap();
     let mut params = p.params.clone();

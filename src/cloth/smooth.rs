@@ -37,7 +37,7 @@ pub struct Smoother {
 }
 
 /// A spring seen from one end.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 struct Link {
     /// The other end's solver index.
     other: u32,
@@ -49,10 +49,10 @@ struct Link {
 }
 
 /// Groups `(owner, item)` pairs by owner (0..n): the starts and the items in owner order.
-fn csr(
+fn csr<T: Copy + Default>(
     n: usize,
-    items: impl Iterator<Item = (usize, (u32, u32))> + Clone,
-) -> (Vec<u32>, Vec<(u32, u32)>) {
+    items: impl Iterator<Item = (usize, T)> + Clone,
+) -> (Vec<u32>, Vec<T>) {
     let mut start = vec![0u32; n + 1];
     for (i, _) in items.clone() {
         start[i + 1] += 1;
@@ -61,9 +61,9 @@ fn csr(
         start[i + 1] += start[i];
     }
     let mut fill = start.clone();
-    let mut out = vec![(0, 0); start[n] as usize];
-    for (i, it) in items {
-        out[fill[i] as usize] = it;
+    let mut out = vec![T::default(); start[n] as usize];
+    for (i, item) in items {
+        out[fill[i] as usize] = item;
         fill[i] += 1;
     }
     (start, out)
@@ -74,47 +74,39 @@ impl Smoother {
     pub fn new(sys: &ReducedSystem) -> Self {
         let n = sys.len();
         let sp = &sys.springs;
+        let link = |s: usize, other: u32| Link {
+            other,
+            rest: sp.rest[s],
+            k: sp.k[s],
+            kc: sp.kc[s],
+        };
         let (spring_start, springs) = csr(
             n,
             (0..sp.a.len()).flat_map(|s| {
                 [
-                    (sp.a[s] as usize, (s as u32, sp.b[s])),
-                    (sp.b[s] as usize, (s as u32, sp.a[s])),
+                    (sp.a[s] as usize, link(s, sp.b[s])),
+                    (sp.b[s] as usize, link(s, sp.a[s])),
                 ]
             }),
         );
         let an = &sys.anchors;
-        let (anchor_start, anchors) = csr(
-            n,
-            (0..an.a.len()).map(|i| (an.a[i] as usize, (i as u32, 0))),
-        );
+        let (anchor_start, anchors) = csr(n, (0..an.a.len()).map(|i| (an.a[i] as usize, i as u32)));
         let b = &sys.bends;
         let (bend_start, bends) = csr(
             n,
             (0..b.len()).flat_map(|s| {
                 (0..4)
                     .filter(move |&k| b.v[s][k] != PINNED)
-                    .map(move |k| (b.v[s][k] as usize, (s as u32, k as u32)))
+                    .map(move |k| (b.v[s][k] as usize, (s as u32, b.w[s][k])))
             }),
         );
         Smoother {
             spring_start,
-            springs: springs
-                .into_iter()
-                .map(|(s, o)| Link {
-                    other: o,
-                    rest: sp.rest[s as usize],
-                    k: sp.k[s as usize],
-                    kc: sp.kc[s as usize],
-                })
-                .collect(),
+            springs,
             anchor_start,
-            anchors: anchors.into_iter().map(|(i, _)| i).collect(),
+            anchors,
             bend_start,
-            bends: bends
-                .into_iter()
-                .map(|(s, k)| (s, b.w[s as usize][k as usize]))
-                .collect(),
+            bends,
         }
     }
 
@@ -159,7 +151,7 @@ impl Smoother {
             }
         }
         for _ in 0..sweeps {
-            for i in 0..x.len() {
+            'particles: for i in 0..x.len() {
                 let xi = x[i];
                 let wm = w * sys.mass[i];
                 let mut g = (xi - y[i]) * wm;
@@ -210,24 +202,20 @@ impl Smoother {
                     continue;
                 }
                 let mut d = -(hm.inverse() * g);
-                if let (Some(c), Some(margin)) = (contact, margin) {
+                if let Some(margin) = margin {
                     // Stay within the margin, and in front of the barrier.
                     let from = start[i];
                     let far = (xi + d).distance(from);
                     if far > margin {
                         d = (from + (xi + d - from) * (margin / far)) - xi;
                     }
-                    let mut feasible = false;
-                    for _ in 0..8 {
-                        let (mut gg, mut hh) = (DVec3::ZERO, DMat3::ZERO);
-                        if c.particle_terms(i, xi + d, mine, &mut gg, &mut hh) {
-                            feasible = true;
-                            break;
+                    let mut halvings = 0;
+                    while !mine.iter().all(|plane| plane.allows(xi + d)) {
+                        if halvings == 8 {
+                            continue 'particles;
                         }
                         d *= 0.5;
-                    }
-                    if !feasible {
-                        continue;
+                        halvings += 1;
                     }
                 }
                 x[i] = xi + d;

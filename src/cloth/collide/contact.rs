@@ -153,6 +153,21 @@ pub struct BarrierPlane {
     width: f64,
 }
 
+impl BarrierPlane {
+    /// How deep `p` is into this plane's band: 0 at its bottom, 1 at its top (see
+    /// [`barrier_shape`]).
+    #[inline]
+    fn depth(&self, p: DVec3) -> f64 {
+        (self.normal.dot(p) + self.offset - self.lo) / self.width
+    }
+
+    /// Whether `p` is above the band's bottom, where the barrier is finite.
+    #[inline]
+    pub fn allows(&self, p: DVec3) -> bool {
+        self.depth(p) > 0.0
+    }
+}
+
 /// a bᵀ.
 #[inline]
 fn outer3(a: DVec3, b: DVec3) -> DMat3 {
@@ -309,25 +324,41 @@ impl NewtonContact {
         p: DVec3,
         mut f: impl FnMut(usize, &SurfacePoint, f64, f64),
     ) -> bool {
+        self.band_surfaces(i, p, 0.0, |j, s, lo, width| {
+            let u = (s.distance - lo) / width;
+            if u <= 0.0 {
+                return false;
+            }
+            f(j, s, u, width);
+            true
+        })
+    }
+
+    /// Calls `f(j, surface, lo, width)` for every collider j whose surface is closer to particle
+    /// `i` at `p` than its barrier band's top plus `margin` (m), with the band's bottom `lo` and
+    /// `width` (m); stops and returns false as soon as `f` does.
+    #[inline]
+    fn band_surfaces(
+        &self,
+        i: usize,
+        p: DVec3,
+        margin: f64,
+        mut f: impl FnMut(usize, &SurfacePoint, f64, f64) -> bool,
+    ) -> bool {
         let at = self.iterate[i];
         for (j, shape) in self.colliders.shapes.iter().enumerate() {
             let start = self.from(i, j);
             let (lo, width) = barrier_band(self.layer(i, j));
-            let top = lo + width;
+            let top = lo + width + margin;
             if self.out_of_reach(i, j, top, p, start) && self.out_of_reach(i, j, top, at, start) {
                 continue;
             }
             let Some(s) = shape.contact(p, at, self.reach(top, p, at)) else {
                 continue;
             };
-            if s.distance >= top {
-                continue;
-            }
-            let u = (s.distance - lo) / width;
-            if u <= 0.0 {
+            if s.distance < top && !f(j, &s, lo, width) {
                 return false;
             }
-            f(j, &s, u, width);
         }
         true
     }
@@ -646,10 +677,32 @@ impl NewtonContact {
     /// The friction slip of a lagged contact at `x`: the particle's displacement since the step
     /// began relative to the collider's surface, less its part along the contact normal (m).
     #[inline]
-    fn slip(&self, c: &LaggedContact, x: &[DVec3]) -> DVec3 {
+    fn slip(&self, c: &LaggedContact, p: DVec3) -> DVec3 {
         let i = c.particle as usize;
-        let d = x[i] - self.from(i, c.shape as usize);
+        let d = p - self.from(i, c.shape as usize);
         d - c.normal * d.dot(c.normal)
+    }
+
+    /// The friction potential's gradient and Hessian block for lagged contact `c` with its
+    /// particle at `p`: μN·s/ε and μN/ε·T in the static regime (slip s shorter than ε), μN·s/|s|
+    /// and μN/|s|·(T − ŝŝᵀ) beyond (positive semi-definite), T = I − nnᵀ.
+    #[inline]
+    fn friction_terms(&self, c: &LaggedContact, p: DVec3) -> (DVec3, DMat3) {
+        let (mu, eps) = (self.colliders.friction, self.slip_scale);
+        let slip = self.slip(c, p);
+        let u = slip.length();
+        let scale = mu * c.force;
+        let tangent =
+            |w: f64| DMat3::from_diagonal(DVec3::splat(w)) - outer3(c.normal, c.normal * w);
+        if u < eps {
+            (slip * (scale / eps), tangent(scale / eps))
+        } else {
+            let dir = slip / u;
+            (
+                dir * scale,
+                tangent(scale / u) - outer3(dir, dir * (scale / u)),
+            )
+        }
     }
 
     /// The friction potential and, with [`ContactModel::Barrier`], the barrier energy at `x`,
@@ -665,7 +718,7 @@ impl NewtonContact {
             .lagged
             .iter()
             .map(|c| {
-                let u = self.slip(c, x).length();
+                let u = self.slip(c, x[c.particle as usize]).length();
                 let f = if u < eps {
                     u * u / (2.0 * eps)
                 } else {
@@ -686,27 +739,15 @@ impl NewtonContact {
         if self.barrier.is_empty() {
             return;
         }
-        let at = self.iterate[i];
-        for (j, shape) in self.colliders.shapes.iter().enumerate() {
-            let start = self.from(i, j);
-            let (lo, width) = barrier_band(self.layer(i, j));
-            let top = lo + width + margin;
-            if self.out_of_reach(i, j, top, p, start) && self.out_of_reach(i, j, top, at, start) {
-                continue;
-            }
-            let Some(s) = shape.contact(p, at, self.reach(top, p, at)) else {
-                continue;
-            };
-            if s.distance >= top {
-                continue;
-            }
+        self.band_surfaces(i, p, margin, |_, s, lo, width| {
             out.push(BarrierPlane {
                 normal: s.normal,
                 offset: s.distance - s.normal.dot(p),
                 lo,
                 width,
             });
-        }
+            true
+        });
     }
 
     /// Adds particle `i`'s terms of [`NewtonContact::energy`] at `p` to its gradient `g` and
@@ -724,7 +765,7 @@ impl NewtonContact {
         if let Some(c) = self.barrier.get(i) {
             let (mut dg, mut dh) = (DVec3::ZERO, DMat3::ZERO);
             for plane in planes {
-                let u = (plane.normal.dot(p) + plane.offset - plane.lo) / plane.width;
+                let u = plane.depth(p);
                 if u >= 1.0 {
                     continue;
                 }
@@ -739,24 +780,11 @@ impl NewtonContact {
             *g += dg;
             *h += dh;
         }
-        let (mu, eps) = (self.colliders.friction, self.slip_scale);
         let mine = self.lagged_start[i] as usize..self.lagged_start[i + 1] as usize;
         for c in &self.lagged[mine] {
-            let d = p - self.from(i, c.shape as usize);
-            let slip = d - c.normal * d.dot(c.normal);
-            let u = slip.length();
-            let scale = mu * c.force;
-            // Tangent projector T = I − n nᵀ, scaled.
-            let tangent =
-                |w: f64| DMat3::from_diagonal(DVec3::splat(w)) - outer3(c.normal, c.normal * w);
-            if u < eps {
-                *g += slip * (scale / eps);
-                *h += tangent(scale / eps);
-            } else {
-                let dir = slip / u;
-                *g += dir * scale;
-                *h += tangent(scale / u) - outer3(dir, dir * (scale / u));
-            }
+            let (dg, dh) = self.friction_terms(c, p);
+            *g += dg;
+            *h += dh;
         }
         true
     }
@@ -780,36 +808,12 @@ impl NewtonContact {
                 block(i, outer(s.normal, s.normal, c * d2 / width));
             });
         }
-        let (mu, eps) = (self.colliders.friction, self.slip_scale);
         for c in &self.lagged {
             let i = c.particle as usize;
-            let slip = self.slip(c, x);
-            let u = slip.length();
-            let scale = mu * c.force;
-            // Tangent projector T = I − n nᵀ.
-            let tangent = |w: f64| {
-                let mut b = outer(c.normal, c.normal, -w);
-                for (r, row) in b.iter_mut().enumerate() {
-                    row[r] += w;
-                }
-                b
-            };
-            if u < eps {
-                grad[i] += slip * (scale / eps);
-                block(i, tangent(scale / eps));
-            } else {
-                let dir = slip / u;
-                grad[i] += dir * scale;
-                // μN/u (T − d dᵀ): positive semi-definite.
-                let mut b = tangent(scale / u);
-                let dd = outer(dir, dir, scale / u);
-                for r in 0..3 {
-                    for c in 0..3 {
-                        b[r][c] -= dd[r][c];
-                    }
-                }
-                block(i, b);
-            }
+            let (g, h) = self.friction_terms(c, x[i]);
+            grad[i] += g;
+            // Symmetric: its columns are its rows.
+            block(i, h.to_cols_array_2d());
         }
     }
 
@@ -1122,6 +1126,69 @@ mod tests {
             let s = contact.resting(0, x[0]).unwrap();
             under[0] -= s.normal * (s.distance - 0.45 * t);
             assert_eq!(contact.energy(&under), f64::INFINITY);
+        }
+    }
+
+    /// Friction's gradient and Hessian blocks are the derivatives of its potential (central
+    /// differences of [`NewtonContact::energy`], which evaluates the potential on its own), in
+    /// the static regime (slip below the slip scale) and the kinetic one: particles that rested
+    /// on a ground plane at the end of a step, pressed onto it by 1e-3 N, slide along it.
+    #[test]
+    fn friction_derivatives_match_finite_differences_of_its_potential() {
+        let sys = lab_system(3, 2e-4);
+        let n = sys.len();
+        let t = 0.004;
+        let colliders = Colliders {
+            shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
+            thickness: t,
+            friction: 0.3,
+            model: ContactModel::Constraint,
+        };
+        let x: Vec<DVec3> = (0..n)
+            .map(|i| DVec3::new(0.01 * i as f64, t, -0.02 * i as f64))
+            .collect();
+        let mut contact = NewtonContact::new(colliders, &sys);
+        contact.begin_step(&x);
+        let touching = contact.end_step(&x, &vec![DVec3::Y * 1e-3; n]);
+        assert_eq!(touching, n);
+        contact.begin_step(&x);
+        for (slide, e) in [(0.3 * contact.slip_scale, 1e-10), (1e-3, 1e-8)] {
+            let moved: Vec<DVec3> = (0..n)
+                .map(|i| {
+                    let a = i as f64;
+                    x[i] + DVec3::new(a.cos(), 0.0, a.sin()) * slide
+                })
+                .collect();
+            let mut grad = vec![DVec3::ZERO; n];
+            let mut blocks = vec![[[0.0; 3]; 3]; n];
+            contact.add_derivatives(&moved, &mut grad, |i, b| blocks[i] = b);
+            for i in 0..n {
+                let scale = grad[i].length();
+                assert!(scale > 0.0, "slide {slide}, particle {i}: no friction");
+                for (c, dir) in [DVec3::X, DVec3::Y, DVec3::Z].into_iter().enumerate() {
+                    let at = |h: f64| {
+                        let mut p = moved.clone();
+                        p[i] += dir * h;
+                        p
+                    };
+                    let fd = (contact.energy(&at(e)) - contact.energy(&at(-e))) / (2.0 * e);
+                    assert!(
+                        (grad[i].dot(dir) - fd).abs() < 1e-4 * scale,
+                        "slide {slide}, particle {i}: gradient {} vs {fd}",
+                        grad[i].dot(dir)
+                    );
+                    let mut plus = vec![DVec3::ZERO; n];
+                    let mut minus = vec![DVec3::ZERO; n];
+                    contact.add_derivatives(&at(e), &mut plus, |_, _| {});
+                    contact.add_derivatives(&at(-e), &mut minus, |_, _| {});
+                    let column = (plus[i] - minus[i]) / (2.0 * e);
+                    let ours = DVec3::new(blocks[i][0][c], blocks[i][1][c], blocks[i][2][c]);
+                    assert!(
+                        ours.distance(column) < 1e-4 * (scale / slide),
+                        "slide {slide}, particle {i}, column {c}: {ours} vs {column}"
+                    );
+                }
+            }
         }
     }
 
