@@ -7,7 +7,7 @@
 //!
 //! Other knobs: `PROBE_PIN` (a `--pin` spec), `PROBE_SHAPE` (a `--collider` spec instead of a
 //! mesh), `PROBE_JAM`, `PROBE_BEND_REST` (`flat` or `mesh`), `PROBE_SUBSTEPS`, `PROBE_BEND`,
-//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`, `PROBE_CONTACT` (`constraint` or
+//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`, `PROBE_TRANSLATE` (x,y,z in m), `PROBE_CONTACT` (`constraint` or
 //! `barrier`), `PROBE_DOUBLE` (set: double-precision
 //! factors only); every step also prints the line search's
 //! step lengths α.
@@ -94,6 +94,10 @@ fn probe() {
     }
     if let Ok(p) = std::env::var("PROBE_PIN") {
         job.pin = vec![p.parse().unwrap()];
+    }
+    if let Ok(t) = std::env::var("PROBE_TRANSLATE") {
+        let v: Vec<f64> = t.split(',').map(|c| c.parse().unwrap()).collect();
+        job.translate = Some(DVec3::new(v[0], v[1], v[2]));
     }
     if let Ok(n) = std::env::var("PROBE_SUBSTEPS") {
         job.substeps = n.parse().unwrap();
