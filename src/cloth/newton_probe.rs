@@ -7,10 +7,10 @@
 //!
 //! Other knobs: `PROBE_PIN` (a `--pin` spec), `PROBE_SHAPE` (a `--collider` spec instead of a
 //! mesh), `PROBE_JAM`, `PROBE_BEND_REST` (`flat` or `mesh`), `PROBE_SUBSTEPS`, `PROBE_BEND`,
-//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`, `PROBE_TRANSLATE` (x,y,z in m), `PROBE_CONTACT` (`constraint` or
-//! `barrier`), `PROBE_DOUBLE` (set: double-precision
-//! factors only); every step also prints the line search's
-//! step lengths α.
+//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`, `PROBE_TRANSLATE` (x,y,z in metres, as
+//! the garments bench raises circle_skirt above the table), `PROBE_CONTACT` (`constraint` or
+//! `barrier`), `PROBE_DOUBLE` (set: double-precision factors only); every step also prints the
+//! line search's step lengths α.
 //!
 //! Prints the mesh's flaws, the springs' and bending stencils' stiffness spread, how many
 //! particles start within the collision thickness, and per step the residual at every Newton
