@@ -684,8 +684,8 @@ impl NewtonContact {
     }
 
     /// The friction potential's gradient and Newton's block for lagged contact `c` with its
-    /// particle at `p`, T = I − nnᵀ: μN·s/ε and μN/ε·T in the static regime (slip s shorter than
-    /// ε, the potential's Hessian), μN·s/|s| and μN/|s|·T beyond.
+    /// particle at `p`, T = I − nnᵀ: μN·s/m and μN/m·T with m = max(|s|, ε), which in the static
+    /// regime (slip s shorter than ε) are the potential's gradient and Hessian.
     ///
     /// In the kinetic regime the potential's Hessian is μN/|s|·(T − ŝŝᵀ): zero along the slip,
     /// where the potential μN·|s| is linear. The block adds μN/|s| along ŝ, which makes its
@@ -699,17 +699,12 @@ impl NewtonContact {
     /// Newton's model of friction changes, not the potential.
     #[inline]
     fn friction_terms(&self, c: &LaggedContact, p: DVec3) -> (DVec3, DMat3) {
-        let (mu, eps) = (self.colliders.friction, self.slip_scale);
         let slip = self.slip(c, p);
-        let u = slip.length();
-        let scale = mu * c.force;
-        let tangent =
-            |w: f64| DMat3::from_diagonal(DVec3::splat(w)) - outer3(c.normal, c.normal * w);
-        if u < eps {
-            (slip * (scale / eps), tangent(scale / eps))
-        } else {
-            (slip * (scale / u), tangent(scale / u))
-        }
+        let w = self.colliders.friction * c.force / slip.length().max(self.slip_scale);
+        (
+            slip * w,
+            DMat3::from_diagonal(DVec3::splat(w)) - outer3(c.normal, c.normal * w),
+        )
     }
 
     /// The friction potential and, with [`ContactModel::Barrier`], the barrier energy at `x`,
@@ -1205,21 +1200,18 @@ mod tests {
                 }
                 // Majorizer: the model never falls below the potential, for moves of every
                 // length in the plane up to twice the slide (through zero slip and beyond).
-                let model_above = |d: DVec3| {
-                    let mut p = moved.clone();
-                    p[i] += d;
-                    let rise = contact.energy(&p) - contact.energy(&moved);
-                    let b = DMat3::from_cols_array_2d(&blocks[i]);
-                    let model = grad[i].dot(d) + 0.5 * d.dot(b * d);
-                    (rise, model)
-                };
+                let base = contact.energy(&moved);
+                let block = DMat3::from_cols_array_2d(&blocks[i]);
                 for k in 0..16 {
                     let a = k as f64 * std::f64::consts::TAU / 16.0;
                     for f in [0.1, 0.5, 1.0, 1.5, 2.0] {
                         let d = DVec3::new(a.cos(), 0.0, a.sin()) * (f * slide);
-                        let (rise, model) = model_above(d);
+                        let mut p = moved.clone();
+                        p[i] += d;
+                        let rise = contact.energy(&p) - base;
+                        let model = grad[i].dot(d) + 0.5 * d.dot(block * d);
                         assert!(
-                            rise <= model + 1e-6 * model.abs() + 1e-12 * contact.energy(&moved),
+                            rise <= model + 1e-6 * model.abs() + 1e-12 * base,
                             "slide {slide}, particle {i}, move {d}: rise {rise} above the model {model}"
                         );
                     }
