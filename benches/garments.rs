@@ -4,6 +4,7 @@
 //! ```text
 //! cargo bench --bench garments                 # every case, 10 frames
 //! cargo bench --bench garments -- skirt8K      # cases whose label contains "skirt8K"
+//! cargo bench --bench garments -- "=dress on mannequin cotton newton 0.1"   # one case, exactly
 //! FRAMES=30 cargo bench --bench garments -- dress
 //! SWEEPS=0 cargo bench --bench garments        # every Newton case without Gauss–Seidel sweeps
 //! ```
@@ -139,7 +140,11 @@ fn main() {
     );
     println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: |");
     for case in cases(frames) {
-        if !filters.is_empty() && !filters.iter().any(|f| case.label.contains(f.as_str())) {
+        let matches = |f: &String| match f.strip_prefix('=') {
+            Some(exact) => case.label == exact,
+            None => case.label.contains(f.as_str()),
+        };
+        if !filters.is_empty() && !filters.iter().any(matches) {
             continue;
         }
         let mut job = case.job.clone();
