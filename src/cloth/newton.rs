@@ -96,12 +96,12 @@ pub const DEFAULT_MAX_ITERATIONS: usize = 50;
 const ARMIJO: f64 = 1e-4;
 
 /// The longer step the line search tries after accepting a full Newton step (α = 1), kept when
-/// it lowers g further by more than roundoff. Newton's model of a stiff, nearly inextensible garment underestimates how
-/// far it may go where springs are compressed (their negative transverse curvature is left out of
-/// the projected Hessian) and in the slow phase where full steps converge only linearly. Over 30
-/// frames of the 8k-vertex skirt hanging from its waist the longer step takes Newton from 173 to
-/// 158 iterations (with a 1 % toe, 148 to 137; doubling up to three times there, 142;
-/// `docs/performance.md`, stop 29).
+/// it lowers g further by more than roundoff. Newton's model of a stiff, nearly inextensible
+/// garment underestimates how far it may go where springs are compressed (their negative
+/// transverse curvature is left out of the projected Hessian) and in the slow phase where full
+/// steps converge only linearly. Over 30 frames of the 8k-vertex skirt hanging from its waist the
+/// longer step takes Newton from 173 to 158 iterations (with a 1 % toe, 148 to 137; doubling up
+/// to three times there, 142; `docs/performance.md`, stop 29).
 const LONGER_STEP: f64 = 2.0;
 
 /// Halvings before the line search gives up and takes the smallest step tried.
@@ -1081,7 +1081,7 @@ impl StepSolver for NewtonSolver {
                 alpha *= 0.5;
             }
             if self.try_longer && alpha == 1.0 && g.is_finite() {
-                // The full step was accepted: twice its length is kept when it lowers g further.
+                // The full step was accepted: twice its length is tried too.
                 let mut longer = std::mem::take(&mut self.longer);
                 for ((t, x), d) in longer.iter_mut().zip(x.iter()).zip(self.dx.chunks_exact(3)) {
                     *t = *x + DVec3::from_slice(d) * LONGER_STEP;
