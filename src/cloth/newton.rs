@@ -476,6 +476,20 @@ impl NewtonSolver {
         self.sys.objective(x, &self.y) + self.contact.as_ref().map_or(0.0, |c| c.energy(x))
     }
 
+    /// Writes the line search's trial x + α·Δx into `trial` (projected out of the colliders and
+    /// settled onto them, unless contact is a barrier, whose energy refuses such trials itself)
+    /// and returns the objective there.
+    fn energy_along(&self, x: &[DVec3], alpha: f64, trial: &mut [DVec3]) -> f64 {
+        for ((t, x), d) in trial.iter_mut().zip(x).zip(self.dx.chunks_exact(3)) {
+            *t = *x + DVec3::from_slice(d) * alpha;
+        }
+        if !self.contact.as_ref().is_some_and(NewtonContact::is_barrier) {
+            self.project(trial);
+            self.settle(trial);
+        }
+        self.energy(trial)
+    }
+
     /// Moves every particle that entered a collider back out (no-op without colliders).
     fn project(&self, x: &mut [DVec3]) {
         if let Some(c) = &self.contact {
@@ -1064,17 +1078,9 @@ impl StepSolver for NewtonSolver {
             let slack = ROUNDOFF * g0.abs();
             let mut alpha = 1.0;
             let mut g = f64::INFINITY;
-            let barrier = self.contact.as_ref().is_some_and(NewtonContact::is_barrier);
             let mut trial = std::mem::take(&mut self.trial);
             for _ in 0..MAX_HALVINGS {
-                for ((t, x), d) in trial.iter_mut().zip(x.iter()).zip(self.dx.chunks_exact(3)) {
-                    *t = *x + DVec3::from_slice(d) * alpha;
-                }
-                if !barrier {
-                    self.project(&mut trial);
-                    self.settle(&mut trial);
-                }
-                g = self.energy(&trial);
+                g = self.energy_along(x, alpha, &mut trial);
                 if g <= g0 + ARMIJO * alpha * slope + slack {
                     break;
                 }
@@ -1083,16 +1089,9 @@ impl StepSolver for NewtonSolver {
             if self.try_longer && alpha == 1.0 && g.is_finite() {
                 // The full step was accepted: twice its length is tried too.
                 let mut longer = std::mem::take(&mut self.longer);
-                for ((t, x), d) in longer.iter_mut().zip(x.iter()).zip(self.dx.chunks_exact(3)) {
-                    *t = *x + DVec3::from_slice(d) * LONGER_STEP;
-                }
-                if !barrier {
-                    self.project(&mut longer);
-                    self.settle(&mut longer);
-                }
                 // Near the solution g's changes are roundoff, and a longer step kept on noise
                 // would throw the iterate to the mirror point: it must gain more than the slack.
-                let g_longer = self.energy(&longer);
+                let g_longer = self.energy_along(x, LONGER_STEP, &mut longer);
                 if g_longer < g - slack {
                     (g, alpha) = (g_longer, LONGER_STEP);
                     std::mem::swap(&mut trial, &mut longer);
@@ -1375,10 +1374,14 @@ mod tests {
 
         let (sys, x0) = grid_system(8, 1000.0, 2e-5, true);
         let shrunk: Vec<DVec3> = x0.iter().map(|p| x0[0] + (*p - x0[0]) * 0.95).collect();
+        // With the longer step as every bake gets it (the default), and without it.
         let run = |longer: bool| {
-            let mut solver = NewtonSolver::new(sys.clone(), 0.1, DEFAULT_MAX_ITERATIONS)
-                .unwrap()
-                .with_longer_step(longer);
+            let solver = NewtonSolver::new(sys.clone(), 0.1, DEFAULT_MAX_ITERATIONS).unwrap();
+            let mut solver = if longer {
+                solver
+            } else {
+                solver.with_longer_step(false)
+            };
             solver.record_history(true);
             let (mut x, mut v) = (shrunk.clone(), vec![DVec3::ZERO; shrunk.len()]);
             let stats = solver.step(&mut x, &mut v).unwrap();

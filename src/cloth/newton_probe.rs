@@ -96,8 +96,7 @@ fn probe() {
         job.pin = vec![p.parse().unwrap()];
     }
     if let Ok(t) = std::env::var("PROBE_TRANSLATE") {
-        let v: Vec<f64> = t.split(',').map(|c| c.parse().unwrap()).collect();
-        job.translate = Some(DVec3::new(v[0], v[1], v[2]));
+        job.translate = Some(crate::spec::vec3_value(&t).unwrap());
     }
     if let Ok(n) = std::env::var("PROBE_SUBSTEPS") {
         job.substeps = n.parse().unwrap();
