@@ -103,7 +103,7 @@ pub struct BakeParams {
     /// Every solver stops a step when ρ = ‖∇g‖ / force scale falls below this (dimensionless;
     /// see [`ReducedSystem::force_scale`]); a step that ends above it is reported unconverged.
     pub tolerance: f64,
-    /// Newton iterations per step at most (default [`newton::DEFAULT_MAX_ITERATIONS`] = 50).
+    /// Newton iterations per step at most (default [`newton::DEFAULT_MAX_ITERATIONS`] = 100).
     pub max_newton: usize,
     /// Gauss–Seidel sweeps after each Newton iteration ([`NewtonSolver::with_sweeps`]; 0: none).
     pub sweeps: usize,

@@ -152,7 +152,7 @@ pub struct ClothJob {
     /// falls below R; steps that end above it are flagged.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::TOLERANCE, value_name = "R"))]
     pub tolerance: f64,
-    /// Iterations per step at most, for whichever solver runs [default: newton 50, fast 500].
+    /// Iterations per step at most, for whichever solver runs [default: newton 100, fast 500].
     #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
     #[serde(alias = "max-iterations")]
     pub max_iterations: Option<usize>,
