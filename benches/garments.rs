@@ -19,8 +19,11 @@ use std::path::PathBuf;
 use scenebake::bake::cloth::{simulate_cloth, ClothJob, ClothSource, SimulatedCloth};
 use scenebake::cloth::collide::{ColliderSpec, ContactModel};
 use scenebake::cloth::pins::PinSpec;
-use scenebake::cloth::springs::SpringKind;
 use scenebake::cloth::SolverKind;
+
+#[path = "../tests/common/strain.rs"]
+mod strain;
+use strain::edge_strain_range;
 
 struct Case {
     label: String,
@@ -173,22 +176,7 @@ fn main() {
         };
         let drop = |k: usize| 1e3 * (min_y(0) - min_y(k));
         let last = cache.frame_count() - 1;
-        let (mut stretch, mut squash) = (0.0f64, 0.0f64);
-        for k in 1..cache.frame_count() {
-            let f = cache.frame(k);
-            for s in model
-                .springs
-                .iter()
-                .filter(|s| s.kind == SpringKind::Stretch)
-            {
-                let len = f[s.a as usize]
-                    .as_dvec3()
-                    .distance(f[s.b as usize].as_dvec3());
-                let strain = len / s.rest - 1.0;
-                stretch = stretch.max(strain);
-                squash = squash.min(strain);
-            }
-        }
+        let (stretch, squash) = edge_strain_range(model, cache);
         let mut its: Vec<usize> = simulation.frames.iter().map(|f| f.iterations).collect();
         let max_its = its.iter().copied().max().unwrap_or(0);
         let within = simulation.frames.iter().filter(|f| f.converged).count();

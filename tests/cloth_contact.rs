@@ -8,12 +8,13 @@ use std::path::PathBuf;
 
 use common::geometry::{box_distance, plane_distance, sphere_distance, Triangles};
 use common::mesh_path;
+use common::strain::edge_strain_range;
 use glam::{DVec3, Vec3};
 use scenebake::bake::cloth::{simulate_cloth, ClothJob, ClothSource, SimulatedCloth};
 use scenebake::cloth::collide::{
     Ball, Collider, ColliderSpec, Colliders, ContactModel, Cuboid, HalfSpace,
 };
-use scenebake::cloth::springs::{SpringKind, SpringSet};
+use scenebake::cloth::springs::SpringSet;
 use scenebake::cloth::{
     make_solver, newton, simulate, BakeParams, ClothModel, FrameCache, SolverKind,
 };
@@ -601,23 +602,7 @@ fn a_skirt_crushed_on_the_table_converges_with_the_defaults() {
         approach > 0.0,
         "a particle entered the table ({approach} m)"
     );
-    // Strain of the mesh's edges (the stretch springs) against their rest lengths.
-    let (mut stretch, mut squash) = (0.0f64, 0.0f64);
-    for k in 1..cache.frame_count() {
-        let f = cache.frame(k);
-        for s in prepared
-            .model
-            .springs
-            .iter()
-            .filter(|s| s.kind == SpringKind::Stretch)
-        {
-            let len = f[s.a as usize]
-                .as_dvec3()
-                .distance(f[s.b as usize].as_dvec3());
-            stretch = stretch.max(len / s.rest - 1.0);
-            squash = squash.min(len / s.rest - 1.0);
-        }
-    }
+    let (stretch, squash) = edge_strain_range(&prepared.model, cache);
     assert!(
         stretch < 0.08 && squash > -0.10,
         "edges stretched {:.1} %, shortened {:.1} %",

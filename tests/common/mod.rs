@@ -7,13 +7,15 @@
 //!   run without any writer;
 //! - [`geometry`]: analytic signed distances to planes, spheres and boxes, and a brute-force
 //!   point–triangle distance with a winding-number inside test for meshes;
-//! - [`cli`]: running the binary, signalling it, and listing what it left in a folder.
+//! - [`cli`]: running the binary, signalling it, and listing what it left in a folder;
+//! - [`strain`]: the largest stretch and compression of a bake's edges, from its frames.
 #![allow(dead_code, reason = "each test file uses a subset")]
 
 pub mod cli;
 pub mod fk;
 pub mod geometry;
 pub mod morph;
+pub mod strain;
 
 use std::path::{Path, PathBuf};
 
