@@ -29,7 +29,7 @@ use glam::DVec3;
 
 pub use fast::FastSolver;
 pub use model::ClothModel;
-pub use newton::NewtonSolver;
+pub use newton::{BendingFactor, NewtonSolver};
 pub use system::{ReducedSystem, StepParams};
 pub use wind::{Aerodynamics, Wind};
 
@@ -147,18 +147,22 @@ pub struct Simulation {
 /// # Errors
 /// When the system cannot be ordered or factored.
 pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn StepSolver>> {
-    let sys = ReducedSystem::new(model, params.step_params())?;
     let colliders = (!params.colliders.is_empty()).then(|| params.colliders.clone());
+    let step = params.step_params();
     Ok(match params.solver {
         SolverKind::Fast => Box::new(
-            FastSolver::new(sys, params.iterations)?
+            FastSolver::new(ReducedSystem::new(model, step)?, params.iterations)?
                 .with_tolerance(params.tolerance)
                 .with_colliders(colliders),
         ),
         SolverKind::Newton => Box::new(
-            NewtonSolver::new(sys, params.tolerance, params.max_newton)?
-                .with_colliders(colliders)
-                .with_sweeps(params.sweeps),
+            NewtonSolver::new(
+                ReducedSystem::with_coupling(model, step, BendingFactor::default().coupling())?,
+                params.tolerance,
+                params.max_newton,
+            )?
+            .with_colliders(colliders)
+            .with_sweeps(params.sweeps),
         ),
     })
 }

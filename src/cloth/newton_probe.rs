@@ -133,7 +133,12 @@ fn probe() {
         count(&fl.sliver),
         count(&fl.boundary)
     );
-    let sys = ReducedSystem::new(model, params.step_params()).unwrap();
+    let sys = ReducedSystem::with_coupling(
+        model,
+        params.step_params(),
+        super::BendingFactor::default().coupling(),
+    )
+    .unwrap();
     let colliders = (!params.colliders.is_empty()).then(|| params.colliders.clone());
     println!(
         "{} particles, {} springs, {} bends, thickness {:?} m, h {} s, force scale {:.3e} N",
