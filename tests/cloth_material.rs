@@ -10,7 +10,7 @@ use scenebake::bake::cloth::{prepare_cloth, ClothJob, ClothSource, PreparedCloth
 use scenebake::cloth::material::DEFAULT_JAM_STRAIN;
 use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::system::{JAM_RAMP, TOE_STRAIN};
-use scenebake::cloth::{make_solver, simulate};
+use scenebake::cloth::{make_solver, simulate, StepSolver};
 use scenebake::glam::DVec3;
 
 /// ρ = ‖∇g‖ / ‖M·g‖ over the free particles for the step from (x₋₂, x₋₁) to x, evaluated from
@@ -195,7 +195,7 @@ fn the_same_fabric_moves_alike_on_a_coarse_and_a_fine_irregular_mesh() {
 fn the_split_factor_takes_the_whole_factors_steps_on_a_garment() {
     use scenebake::cloth::newton::DEFAULT_SWEEPS;
     use scenebake::cloth::system::ReducedSystem;
-    use scenebake::cloth::{BendingFactor, NewtonSolver, StepSolver};
+    use scenebake::cloth::{BendingFactor, NewtonSolver};
 
     let mut job = ClothJob::new(
         ClothSource::File(common::crate_dir().join("meshes/garments/robot_skirt.obj")),
@@ -218,19 +218,45 @@ fn the_split_factor_takes_the_whole_factors_steps_on_a_garment() {
     let mut split = solver(BendingFactor::Split, tolerance, p.params.max_newton);
     let mut whole = solver(BendingFactor::Whole, tolerance, p.params.max_newton);
     let mut tight = solver(BendingFactor::Whole, 1e-3, 300);
-    let mut x = sys.gather(p.model.positions());
+    steps_beside_a_tight_solve(
+        [("split factor", &mut split), ("whole factor", &mut whole)],
+        &mut tight,
+        sys.gather(p.model.positions()),
+    );
+    let (on, gradients, directions) = split.conjugate_gradients();
+    assert!(on && directions > 0, "{on} {directions}");
+    assert!(
+        gradients <= 15 * directions,
+        "{gradients} gradients over {directions} directions"
+    );
+    assert!(!whole.conjugate_gradients().0);
+}
+
+/// Five steps from rest (`x`, solver order) of two solvers and a tight one, each of the two
+/// started every step from the tight solver's state: all three must converge, and each of the
+/// two must end within 1 cm of the tight step (RMS within 2 mm). Returns the two solvers'
+/// Newton iterations.
+fn steps_beside_a_tight_solve(
+    solvers: [(&str, &mut dyn StepSolver); 2],
+    tight: &mut dyn StepSolver,
+    mut x: Vec<DVec3>,
+) -> [usize; 2] {
     let mut v = vec![DVec3::ZERO; x.len()];
+    let [(la, a), (lb, b)] = solvers;
+    let mut iterations = [0; 2];
     for step in 1..=5 {
         let (mut xa, mut va) = (x.clone(), v.clone());
         let (mut xb, mut vb) = (x.clone(), v.clone());
-        let a = split.step(&mut xa, &mut va).unwrap();
-        let b = whole.step(&mut xb, &mut vb).unwrap();
+        let sa = a.step(&mut xa, &mut va).unwrap();
+        let sb = b.step(&mut xb, &mut vb).unwrap();
         let t = tight.step(&mut x, &mut v).unwrap();
         assert!(
-            a.converged && b.converged && t.converged,
-            "step {step}: {a:?} {b:?} {t:?}"
+            sa.converged && sb.converged && t.converged,
+            "step {step}: {sa:?} {sb:?} {t:?}"
         );
-        for (label, ours) in [("split", &xa), ("whole", &xb)] {
+        iterations[0] += sa.iterations;
+        iterations[1] += sb.iterations;
+        for (label, ours) in [(la, &xa), (lb, &xb)] {
             let worst = ours
                 .iter()
                 .zip(&x)
@@ -244,17 +270,11 @@ fn the_split_factor_takes_the_whole_factors_steps_on_a_garment() {
             let rms = (sum / x.len() as f64).sqrt();
             assert!(
                 worst < 1e-2 && rms < 2e-3,
-                "step {step}, {label} factor: {worst} m from the tight solve, RMS {rms} m"
+                "step {step}, {label}: {worst} m from the tight solve, RMS {rms} m"
             );
         }
     }
-    let (on, gradients, directions) = split.conjugate_gradients();
-    assert!(on && directions > 0, "{on} {directions}");
-    assert!(
-        gradients <= 15 * directions,
-        "{gradients} gradients over {directions} directions"
-    );
-    assert!(!whole.conjugate_gradients().0);
+    iterations
 }
 
 /// The circle skirt pinned at its waist, default cotton (nothing is written).
@@ -345,7 +365,6 @@ fn gauss_seidel_sweeps_shorten_newton_without_moving_its_solution() {
     use scenebake::cloth::newton::{NewtonSolver, DEFAULT_SWEEPS};
     use scenebake::cloth::smooth::{Smoother, SweepScratch};
     use scenebake::cloth::system::ReducedSystem;
-    use scenebake::cloth::StepSolver;
 
     let dir = tempfile::tempdir().unwrap();
     let mesh = sheet(dir.path(), "sheet.obj", 20, 0.1);
@@ -399,39 +418,14 @@ fn gauss_seidel_sweeps_shorten_newton_without_moving_its_solution() {
     params.tolerance = 1e-3;
     params.max_newton = 300;
     let mut tight = make_solver(&p.model, &params).unwrap();
-    // Each step starts every solver from the tight solve's state.
-    let mut x = with.system().gather(p.model.positions());
-    let mut v = vec![DVec3::ZERO; x.len()];
-    let (mut ia, mut ib) = (0, 0);
-    let apart = |a: &[DVec3], b: &[DVec3]| {
-        a.iter()
-            .zip(b)
-            .map(|(a, b)| a.distance(*b))
-            .fold(0.0, f64::max)
-    };
-    for step in 1..=5 {
-        let (mut xa, mut va) = (x.clone(), v.clone());
-        let (mut xb, mut vb) = (x.clone(), v.clone());
-        let a = with.step(&mut xa, &mut va).unwrap();
-        let b = without.step(&mut xb, &mut vb).unwrap();
-        let t = tight.step(&mut x, &mut v).unwrap();
-        assert!(
-            a.converged && b.converged && t.converged,
-            "step {step}: {a:?} {b:?} {t:?}"
-        );
-        ia += a.iterations;
-        ib += b.iterations;
-        let rms = |a: &[DVec3]| {
-            let sum: f64 = a.iter().zip(&x).map(|(a, b)| a.distance_squared(*b)).sum();
-            (sum / a.len() as f64).sqrt()
-        };
-        for (label, ours) in [("with", &xa), ("without", &xb)] {
-            let (worst, rms) = (apart(ours, &x), rms(ours));
-            assert!(
-                worst < 1e-2 && rms < 2e-3,
-                "step {step} {label} sweeps: {worst} m from the tight solve, RMS {rms} m"
-            );
-        }
-    }
+    let x = with.system().gather(p.model.positions());
+    let [ia, ib] = steps_beside_a_tight_solve(
+        [
+            ("with sweeps", with.as_mut()),
+            ("without sweeps", without.as_mut()),
+        ],
+        tight.as_mut(),
+        x,
+    );
     assert!(2 * ia < ib, "{ia} iterations with sweeps, {ib} without");
 }
