@@ -7,6 +7,7 @@
 //! cargo bench --bench garments -- "=dress on mannequin cotton newton 0.1"   # one case, exactly
 //! FRAMES=30 cargo bench --bench garments -- dress
 //! SWEEPS=0 cargo bench --bench garments        # every Newton case without Gauss–Seidel sweeps
+//! THREADS=1 JAM=0.06 cargo bench --bench garments   # one thread; a 6 % jamming strain
 //! ```
 //!
 //! Prints one markdown row per case: iterations per step (median, max), ms per frame, the share
@@ -133,6 +134,10 @@ fn main() {
         .and_then(|f| f.parse().ok())
         .unwrap_or(10);
     let sweeps: Option<usize> = std::env::var("SWEEPS").ok().and_then(|s| s.parse().ok());
+    // THREADS=1 for runs side by side, one per core (default: every core, as the CLI).
+    let threads: Option<usize> = std::env::var("THREADS").ok().and_then(|s| s.parse().ok());
+    // JAM=0.06: every material case with that jamming strain (`--jam-strain`).
+    let jam: Option<f64> = std::env::var("JAM").ok().and_then(|s| s.parse().ok());
     let filters: Vec<String> = std::env::args()
         .skip(1)
         .filter(|a| !a.starts_with("--"))
@@ -153,6 +158,10 @@ fn main() {
         let mut job = case.job.clone();
         if let Some(sweeps) = sweeps {
             job.sweeps = sweeps;
+        }
+        job.threads = threads.or(job.threads);
+        if job.stiffness.is_none() {
+            job.jam_strain = jam.or(job.jam_strain);
         }
         let result = simulate_cloth(&job, &mut |_, _| {});
         let SimulatedCloth {

@@ -62,6 +62,8 @@ params! {
     MaxNewton => "max_newton",
     /// Newton's Gauss–Seidel sweeps per iteration.
     Sweeps => "sweeps",
+    /// The threads a bake may use.
+    Threads => "threads",
     /// A fabric preset.
     Material => "material",
     /// A fabric's stretch modulus.

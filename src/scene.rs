@@ -113,6 +113,18 @@ impl Job {
         }
     }
 
+    /// The job with at most `threads` threads where it does not name its own (`threads` in a
+    /// cloth job): a scene running several jobs at once shares the cores among them.
+    pub fn with_thread_budget(&self, threads: usize) -> Job {
+        match self {
+            Job::Cloth(j) if j.threads.is_none() => Job::Cloth(Box::new(ClothJob {
+                threads: Some(threads.max(1)),
+                ..(**j).clone()
+            })),
+            job => job.clone(),
+        }
+    }
+
     /// Runs the job; `progress(done, total)` is called as frames are baked.
     ///
     /// # Errors

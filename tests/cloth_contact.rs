@@ -70,8 +70,8 @@ fn job(input: &str, solver: SolverKind, frames: usize) -> ClothJob {
     );
     job.solver = solver;
     job.frames = Some(frames);
-    // These scenes use the labs' springs with a fixed effort per step: ten local/global
-    // iterations, or Newton to 1e-8 (at most its default cap of iterations).
+    // These scenes use the default material (cotton) with a fixed effort per step: ten
+    // local/global iterations, or Newton to 1e-8 (at most its default cap of iterations).
     job.iterations = 10;
     job.tolerance = 1e-8;
     job
@@ -116,6 +116,7 @@ fn particle_on_a_slope_obeys_coulomb() {
                 tolerance: 1e-10,
                 max_newton: newton::DEFAULT_MAX_ITERATIONS,
                 sweeps: newton::DEFAULT_SWEEPS,
+                threads: 1,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(normal, 0.0).unwrap())],
                     thickness,
@@ -197,6 +198,7 @@ fn newton_keeps_a_particle_starting_inside_the_thickness_where_it_started() {
                 tolerance: 1e-10,
                 max_newton: newton::DEFAULT_MAX_ITERATIONS,
                 sweeps: newton::DEFAULT_SWEEPS,
+                threads: 1,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
                     thickness,
@@ -289,6 +291,13 @@ fn sheet_over_a_sphere_never_penetrates() {
     for solver_kind in SOLVERS {
         let mut job = job("plane_30x30.obj", solver_kind, 60);
         job.collider = vec![ColliderSpec::Sphere(ball.centre, ball.radius)];
+        if solver_kind == SolverKind::Fast {
+            // Ten local/global iterations leave this cotton sheet far from converged (ρ ≈ 100,
+            // edges compressed by 20–30 %), where how it drapes depends on where its edges jam:
+            // at the default 6 % its centre stays 0.23 m above the ball after 60 frames. This
+            // test is about contact, so the fast solver keeps the 8 % it was written with.
+            job.jam_strain = Some(0.08);
+        }
         let (cache, params, _) = bake(&job);
         // Newton's default is the barrier; the fast solver's filtered solve is a constraint, and
         // the parameters (which the report shows) say so.

@@ -390,7 +390,15 @@ fn gauss_seidel_sweeps_shorten_newton_without_moving_its_solution() {
     let smoother = Smoother::new(&sys);
     let mut scratch = SweepScratch::default();
     let mut swept = x.clone();
-    smoother.sweep(&sys, &mut swept, &y, DEFAULT_SWEEPS, None, &mut scratch);
+    smoother.sweep(
+        &sys,
+        &mut swept,
+        &y,
+        DEFAULT_SWEEPS,
+        None,
+        &mut scratch,
+        false,
+    );
     let moved = swept
         .iter()
         .zip(&x)
@@ -408,7 +416,15 @@ fn gauss_seidel_sweeps_shorten_newton_without_moving_its_solution() {
         .map(|(i, p)| *p + DVec3::new((i as f64).sin(), (1.7 * i as f64).cos(), 0.5) * 1e-3)
         .collect();
     let before = sys.objective(&disturbed, &y);
-    smoother.sweep(&sys, &mut disturbed, &y, DEFAULT_SWEEPS, None, &mut scratch);
+    smoother.sweep(
+        &sys,
+        &mut disturbed,
+        &y,
+        DEFAULT_SWEEPS,
+        None,
+        &mut scratch,
+        false,
+    );
     let after = sys.objective(&disturbed, &y);
     let floor = sys.objective(&x, &y);
     assert!(
@@ -435,4 +451,71 @@ fn gauss_seidel_sweeps_shorten_newton_without_moving_its_solution() {
         x,
     );
     assert!(2 * ia < ib, "{ia} iterations with sweeps, {ib} without");
+}
+
+/// With two threads (`--threads 2`) Newton's sweeps move a garment's two halves at once, and
+/// the bake is the same to the bit as on one thread: hanging from its waist, and dropped onto a
+/// sphere (the sweeps' barrier planes), three frames each. The circle skirt is split: neither
+/// half holds less than a third of its particles.
+#[test]
+fn two_threads_bake_the_same_garment_as_one() {
+    use scenebake::cloth::collide::ColliderSpec;
+    use scenebake::cloth::newton::{BendingFactor, NewtonSolver};
+    use scenebake::cloth::smooth::Smoother;
+    use scenebake::cloth::system::ReducedSystem;
+
+    let hanging = hanging_circle_skirt();
+    let mut dropped = hanging.clone();
+    dropped.pin.clear();
+    dropped.collider = vec!["sphere:0,0.55,0,0.3".parse::<ColliderSpec>().unwrap()];
+    for (name, mut job) in [("hanging", hanging), ("dropped on a sphere", dropped)] {
+        job.frames = Some(3);
+        let p = prepare_cloth(&job).unwrap();
+        let sys = ReducedSystem::new(&p.model, p.params.step_params()).unwrap();
+        let (a, b) = Smoother::new(&sys).parts();
+        assert!(
+            3 * a.min(b) > sys.len(),
+            "{name}: parts of {a} and {b} of {}",
+            sys.len()
+        );
+        // Newton's factor splits too: its two halves are factored and solved at once.
+        let ordered = ReducedSystem::with_coupling(
+            &p.model,
+            p.params.step_params(),
+            BendingFactor::default().coupling(),
+        )
+        .unwrap();
+        let newton = NewtonSolver::new(ordered, 0.1, 1).unwrap();
+        let [top, ha, hb] = newton.factor_halves().expect("the factor splits");
+        assert!(
+            3 * ha.min(hb) > ha.max(hb) && 10 * top < ha + hb,
+            "{name}: factor halves of {ha} and {hb} columns, a top of {top}"
+        );
+        let bake = |threads: usize| {
+            let mut params = p.params.clone();
+            params.threads = threads;
+            let mut solver = make_solver(&p.model, &params).unwrap();
+            simulate(&p.model, solver.as_mut(), &params, &mut |_| {}).unwrap()
+        };
+        let (one, two) = (bake(1), bake(2));
+        let last = one.cache.frame_count() - 1;
+        let moved = one
+            .cache
+            .frame(0)
+            .iter()
+            .zip(one.cache.frame(last))
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, f32::max);
+        assert!(moved > 1e-3, "{name}: the skirt moved {moved} m only");
+        let iterations = |s: &scenebake::cloth::Simulation| -> Vec<usize> {
+            s.frames.iter().map(|f| f.iterations).collect()
+        };
+        assert_eq!(iterations(&one), iterations(&two), "{name}");
+        for k in 0..one.cache.frame_count() {
+            assert!(
+                one.cache.frame(k) == two.cache.frame(k),
+                "{name}: frame {k} differs between one thread and two"
+            );
+        }
+    }
 }

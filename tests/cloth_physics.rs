@@ -19,6 +19,7 @@ fn params(solver: SolverKind, damping: f64, gravity: DVec3) -> BakeParams {
         tolerance: 1e-12,
         max_newton: newton::DEFAULT_MAX_ITERATIONS,
         sweeps: newton::DEFAULT_SWEEPS,
+        threads: 1,
         colliders: Default::default(),
         wind: None,
     }

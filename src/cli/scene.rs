@@ -93,12 +93,15 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
             .map(|(_, j)| j)
             .collect();
     }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let workers = match args.jobs {
         Some(0) => bail!("invalid value for --jobs: 0: must be at least 1"),
         Some(n) => n,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        None => cores,
     }
     .min(selected.len().max(1));
+    // Jobs running at once share the cores (a cloth job that names its `threads` keeps them).
+    let budget = (cores / workers).max(1);
     let start = std::time::Instant::now();
     let total = selected.len();
     // Longest expected first, so a long job does not start last on an otherwise idle core; the
@@ -120,13 +123,14 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
                 }
                 let k = order[slot];
                 let job = selected[k];
+                let budgeted = job.job.with_thread_budget(budget);
                 let label = format!("[{}/{total}] {} {}", k + 1, job.job.kind(), job.name);
                 let bar = multi.add(progress::bar(
                     &label,
                     job.job.frames_hint().unwrap_or(1) as u64,
                     quiet,
                 ));
-                let result = run_job(&job.job, &job.name, &bar, &scenebake::param::scene_key)
+                let result = run_job(&budgeted, &job.name, &bar, &scenebake::param::scene_key)
                     .map_err(|e| {
                         let e = match e {
                             JobError::Bake(e) => anyhow!("{e}"),

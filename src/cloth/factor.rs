@@ -98,6 +98,27 @@ fn faer_view(upper: &CsMat<f64>) -> SparseColMatRef<'_, usize, f64> {
     SparseColMatRef::new(symbolic, upper.data())
 }
 
+/// faer's symbolic Cholesky analysis of the n×n matrix whose upper triangle has the pattern
+/// (`col_ptr`, `row_idx`) (compressed columns, rows ascending), in the given order
+/// (`SymmetricOrdering::Identity`), supernodal or simplicial as faer judges.
+///
+/// # Errors
+/// [`Error::Factorisation`] when the analysis fails (out of memory).
+pub fn analyse_upper(
+    n: usize,
+    col_ptr: &[usize],
+    row_idx: &[usize],
+) -> Result<faer::sparse::linalg::cholesky::SymbolicCholesky<usize>> {
+    let pattern = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
+    factorize_symbolic_cholesky(
+        pattern,
+        Side::Upper,
+        SymmetricOrdering::Identity,
+        CholeskySymbolicParams::default(),
+    )
+    .map_err(|e| Error::Factorisation(format!("symbolic analysis: {e:?}")))
+}
+
 /// A fill-reducing order for the n×n symmetric pattern given by `pairs` (plus the diagonal):
 /// `order[new] = old`.
 ///

@@ -19,6 +19,7 @@ pub mod newton;
 pub mod pins;
 pub mod preset;
 pub mod smooth;
+mod split;
 pub mod springs;
 pub mod system;
 pub mod wind;
@@ -103,10 +104,12 @@ pub struct BakeParams {
     /// Every solver stops a step when ρ = ‖∇g‖ / force scale falls below this (dimensionless;
     /// see [`ReducedSystem::force_scale`]); a step that ends above it is reported unconverged.
     pub tolerance: f64,
-    /// Newton iterations per step at most (default [`newton::DEFAULT_MAX_ITERATIONS`] = 100).
+    /// Newton iterations per step at most (default [`newton::DEFAULT_MAX_ITERATIONS`] = 200).
     pub max_newton: usize,
     /// Gauss–Seidel sweeps after each Newton iteration ([`NewtonSolver::with_sweeps`]; 0: none).
     pub sweeps: usize,
+    /// Threads a bake may use (1: this one only; see [`NewtonSolver::with_threads`]).
+    pub threads: usize,
     /// What the cloth collides with (none when empty).
     pub colliders: Colliders,
     /// Aerodynamic forces, when any.
@@ -162,7 +165,8 @@ pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn St
                 params.max_newton,
             )?
             .with_colliders(colliders)
-            .with_sweeps(params.sweeps),
+            .with_sweeps(params.sweeps)
+            .with_threads(params.threads),
         ),
     })
 }

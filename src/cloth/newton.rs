@@ -42,6 +42,16 @@
 //! checked on stay in double precision. A matrix too ill-conditioned for single precision (the
 //! factor fails, or refinement stalls) gets a double-precision factor for the rest of the step.
 //!
+//! Two halves ([`SplitCholesky`]): with the split factor, when the elimination tree branches
+//! into two balanced subtrees below its top separator (garment-sized meshes), the
+//! single-precision factor is computed as those two halves and a dense top, the halves on two
+//! threads at once, and the preconditioner's solves run the halves at once too
+//! ([`NewtonSolver::with_threads`]). One thread does the same arithmetic in the same order, so
+//! the bake does not depend on the thread count. On the 8k-vertex skirt (a top of 330 of its
+//! 23,979 unknowns) a factorisation takes 12.7 ms on two threads, against 21.9 ms for faer's
+//! whole factor and 22.7 ms for the halves one after the other on one thread
+//! (`docs/performance.md`, stop 33).
+//!
 //! Contact (see [`NewtonContact`]): a projected Newton method. At each iterate the particles
 //! resting on a collider whose gradient pushes them into it are held: their normal component is
 //! removed from the gradient (what remains is the residual, the removed part is the contact
@@ -68,17 +78,16 @@
 //! (h²k/m ≈ 10⁵) it can then reach the iteration cap, which the step reports as not converged.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
-};
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use glam::DVec3;
 
 use super::collide::contact::NewtonContact;
 use super::collide::{Collider, Colliders};
+use super::factor::analyse_upper;
 use super::smooth::{Smoother, SweepScratch};
+use super::split::SplitCholesky;
 use super::system::{BendCoupling, ReducedSystem, OPPOSITE, PINNED};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
@@ -97,11 +106,11 @@ pub const DEFAULT_SWEEPS: usize = 10;
 
 /// Default cap on Newton iterations per time step: a safety net, not a budget (a step stops on
 /// the tolerance). Hanging garments and the draped dress converge within 15; a skirt crushed
-/// against a table or a sphere buckles into new folds and takes 50–100 on a few frames after
-/// impact (8k-vertex skirts over 30 frames: 53–96, every drop frame but one converged; at a cap
-/// of 50, 22–29 of 30). Only frames that would otherwise end unconverged pay for the higher cap
-/// (`docs/performance.md`, stop 30).
-pub const DEFAULT_MAX_ITERATIONS: usize = 100;
+/// against a table or a sphere buckles into new folds and takes 50–140 on a few frames after
+/// impact (circle_skirt on the table over 30 frames: 95, 140, 103, 108 on four frames, every
+/// frame converged; at a cap of 100, 25 of 30, at 50, 22). Only frames that would otherwise end
+/// unconverged pay for the higher cap (`docs/performance.md`, stops 30 and 32).
+pub const DEFAULT_MAX_ITERATIONS: usize = 200;
 
 /// Armijo sufficient-decrease constant of the backtracking line search.
 const ARMIJO: f64 = 1e-4;
@@ -230,6 +239,8 @@ pub struct NewtonSolver {
     col_ptr: Vec<usize>,
     /// Upper-triangle row indices, sorted within each column.
     row_idx: Vec<usize>,
+    /// The same row indices in 32 bits, for the products by H (a third fewer bytes to read).
+    row_idx32: Vec<u32>,
     /// Upper-triangle values, overwritten by every assembly.
     values: Vec<f64>,
     /// Per free particle: its diagonal block's columns.
@@ -299,6 +310,12 @@ pub struct NewtonSolver {
     sweep_scratch: SweepScratch,
     /// Sweep passes tried and kept, since the solver was made.
     passes: [usize; 2],
+    /// Threads the solver may use ([`NewtonSolver::with_threads`]).
+    threads: usize,
+    /// The single-precision factor in two halves and a dense top, the halves factored and
+    /// solved on two threads at once ([`SplitCholesky`]), when the directions come from
+    /// conjugate gradients and the factor's elimination tree splits.
+    split_factor: Option<SplitCholesky>,
 }
 
 impl NewtonSolver {
@@ -414,14 +431,7 @@ impl NewtonSolver {
         let split = bending == BendingFactor::Split
             && sys.bends.v.iter().any(|v| opposite_split(v).is_some());
 
-        let pattern = SymbolicSparseColMatRef::new_checked(dim, dim, &col_ptr, None, &row_idx);
-        let symbolic = factorize_symbolic_cholesky(
-            pattern,
-            Side::Upper,
-            SymmetricOrdering::Identity,
-            CholeskySymbolicParams::default(),
-        )
-        .map_err(|e| Error::Factorisation(format!("symbolic analysis: {e:?}")))?;
+        let symbolic = analyse_upper(dim, &col_ptr, &row_idx)?;
         let par = factor_par();
         let scratch = Scratch(MemBuffer::new(StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
@@ -436,9 +446,20 @@ impl NewtonSolver {
             symbolic.raw(),
             faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
         );
+        let row_idx32 = row_idx.iter().map(|&r| index32(r)).collect::<Result<_>>()?;
+        let split_factor = if split && supernodal {
+            SplitCholesky::new(&col_ptr, &row_idx, &symbolic)
+        } else {
+            None
+        };
+        // The whole single-precision factor is not needed beside the halves (a failed half
+        // falls back to double precision).
+        let single = if split_factor.is_some() { 0 } else { 1 };
         Ok(NewtonSolver {
-            values32: vec![0.0; row_idx.len()],
-            l_values32: vec![0.0; symbolic.len_val()],
+            split_factor,
+            row_idx32,
+            values32: vec![0.0; single * row_idx.len()],
+            l_values32: vec![0.0; single * symbolic.len_val()],
             rhs32: vec![0.0; dim],
             refine: vec![0.0; dim],
             held_factor: Precision::Double,
@@ -474,6 +495,7 @@ impl NewtonSolver {
             smoother: None,
             sweep_scratch: SweepScratch::default(),
             passes: [0; 2],
+            threads: 1,
             tolerance,
             max_iterations,
             sys,
@@ -530,6 +552,24 @@ impl NewtonSolver {
         self
     }
 
+    /// Runs on up to `threads` threads (default 1). With two or more, a large model's
+    /// Gauss–Seidel sweeps move its two parts at once ([`Smoother`]), and its preconditioner's
+    /// two halves are factored and solved at once ([`SplitCholesky`]): the same iterates as on
+    /// one thread, to the bit, sooner.
+    pub fn with_threads(mut self, threads: usize) -> Self {
+        self.threads = threads.max(1);
+        if let Some(split) = &mut self.split_factor {
+            split.use_helper(self.threads >= 2);
+        }
+        self
+    }
+
+    /// When the single-precision factor is split ([`SplitCholesky`]): the columns of its top
+    /// and of its two halves.
+    pub fn factor_halves(&self) -> Option<[usize; 3]> {
+        self.split_factor.as_ref().map(SplitCholesky::sizes)
+    }
+
     /// Sweep passes tried, and kept (lowering the objective), since the solver was made.
     pub fn sweep_passes(&self) -> (usize, usize) {
         (self.passes[0], self.passes[1])
@@ -559,6 +599,7 @@ impl NewtonSolver {
             self.sweeps,
             contact,
             &mut self.sweep_scratch,
+            self.threads >= 2,
         );
         self.passes[0] += 1;
         if self.energy(&trial) < g {
@@ -856,6 +897,13 @@ impl NewtonSolver {
     /// Factors the assembled Hessian: in single precision while that has not failed in this
     /// step, else in double precision.
     fn factorize(&mut self) -> Result<()> {
+        if let Some(split) = self.split_factor.as_mut().filter(|_| self.try_single) {
+            if split.factor(&self.values) {
+                self.held_factor = Precision::Single;
+                return Ok(());
+            }
+            self.try_single = false;
+        }
         if self.try_single {
             for (v32, v) in self.values32.iter_mut().zip(&self.values) {
                 *v32 = *v as f32;
@@ -991,7 +1039,7 @@ impl NewtonSolver {
         negate_into(&mut self.refine, &self.free_grad);
         subtract_product(
             &self.col_ptr,
-            &self.row_idx,
+            &self.row_idx32,
             &self.values,
             &self.dx,
             &mut self.refine,
@@ -1062,9 +1110,13 @@ impl NewtonSolver {
             for (b, r) in self.rhs32.iter_mut().zip(r) {
                 *b = *r as f32;
             }
-            let llt = LltRef::new(&self.symbolic, &self.l_values32);
-            let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
-            llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
+            if let Some(split) = &mut self.split_factor {
+                split.solve(&mut self.rhs32);
+            } else {
+                let llt = LltRef::new(&self.symbolic, &self.l_values32);
+                let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
+                llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
+            }
             for (z, c) in z.iter_mut().zip(&self.rhs32) {
                 *z = f64::from(*c);
             }
@@ -1081,7 +1133,7 @@ impl NewtonSolver {
     /// normal n, the nᵀD_ii n·n nᵀ v that the filter added back.
     fn hessian_product(&self, v: &[f64], out: &mut [f64]) {
         out.fill(0.0);
-        subtract_product(&self.col_ptr, &self.row_idx, &self.values, v, out);
+        subtract_product(&self.col_ptr, &self.row_idx32, &self.values, v, out);
         for o in out.iter_mut() {
             *o = -*o;
         }
@@ -1174,19 +1226,26 @@ fn project_block(b: [[f64; 3]; 3], ni: Option<DVec3>, nj: Option<DVec3>) -> [[f6
 /// out −= A v, A symmetric, given by its upper triangle in compressed columns.
 fn subtract_product(
     col_ptr: &[usize],
-    row_idx: &[usize],
+    row_idx: &[u32],
     values: &[f64],
     v: &[f64],
     out: &mut [f64],
 ) {
     for c in 0..v.len() {
-        let (mut below, vc) = (0.0, v[c]);
-        for p in col_ptr[c]..col_ptr[c + 1] {
-            let (r, a) = (row_idx[p], values[p]);
-            below += a * v[r];
-            if r != c {
-                out[r] -= a * vc;
-            }
+        let (vc, column) = (v[c], col_ptr[c]..col_ptr[c + 1]);
+        let (rows, values) = (&row_idx[column.clone()], &values[column]);
+        // Rows ascend, so the diagonal entry, when stored, is the column's last.
+        let off = match rows.last() {
+            Some(&r) if r as usize == c => rows.len() - 1,
+            _ => rows.len(),
+        };
+        let mut below = 0.0;
+        for (&r, &a) in rows[..off].iter().zip(&values[..off]) {
+            below += a * v[r as usize];
+            out[r as usize] -= a * vc;
+        }
+        if let Some(&a) = values.get(off) {
+            below += a * vc;
         }
         out[c] -= below;
     }
@@ -1523,7 +1582,13 @@ mod tests {
             }
             split.hessian_product(&v, &mut got);
             want.fill(0.0);
-            subtract_product(&whole.col_ptr, &whole.row_idx, &whole.values, &v, &mut want);
+            subtract_product(
+                &whole.col_ptr,
+                &whole.row_idx32,
+                &whole.values,
+                &v,
+                &mut want,
+            );
             let scale = want.iter().fold(0.0f64, |m, w| m.max(w.abs()));
             for (g, w) in got.iter().zip(&want) {
                 assert!((g + w).abs() <= 1e-12 * scale, "held {held}: {g} vs {}", -w);

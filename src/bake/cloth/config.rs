@@ -152,7 +152,7 @@ pub struct ClothJob {
     /// falls below R; steps that end above it are flagged.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::TOLERANCE, value_name = "R"))]
     pub tolerance: f64,
-    /// Iterations per step at most, for whichever solver runs [default: newton 100, fast 500].
+    /// Iterations per step at most, for whichever solver runs [default: newton 200, fast 500].
     #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
     #[serde(alias = "max-iterations")]
     pub max_iterations: Option<usize>,
@@ -168,6 +168,12 @@ pub struct ClothJob {
     /// step is solved to.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = crate::cloth::newton::DEFAULT_SWEEPS, value_name = "N"))]
     pub sweeps: usize,
+    /// Threads the bake may use: with two, Newton's Gauss–Seidel sweeps move the two halves of a
+    /// large mesh at once, and its factor's two halves are factored and solved at once, with the
+    /// same result as on one [default: every core; in a scene, the cores shared among the jobs
+    /// running at once].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
+    pub threads: Option<usize>,
     /// The fabric of a surface mesh, mapped onto its edges by rest length and area [default:
     /// cotton].
     #[cfg_attr(feature = "cli", arg(long, value_enum))]
@@ -183,7 +189,7 @@ pub struct ClothJob {
     pub compression: Option<f64>,
     /// The fabric's jamming strain J: around this compression (a fraction of an edge's rest
     /// length, between 0 and 1) an edge resists with its full stretch stiffness again, added
-    /// along a ramp from J/2 to 3J/2 [default: 0.08].
+    /// along a ramp from J/2 to 3J/2 [default: 0.06].
     #[cfg_attr(feature = "cli", arg(long, value_name = "STRAIN"))]
     #[serde(alias = "jam-strain")]
     pub jam_strain: Option<f64>,
@@ -434,6 +440,7 @@ impl Default for ClothJob {
             iterations: defaults::ITERATIONS,
             max_newton: crate::cloth::newton::DEFAULT_MAX_ITERATIONS,
             sweeps: crate::cloth::newton::DEFAULT_SWEEPS,
+            threads: None,
             material: None,
             stretch: None,
             bend: None,

@@ -81,6 +81,9 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             "0: must be at least 1",
         ));
     }
+    if job.threads == Some(0) {
+        return Err(Error::param_value(Param::Threads, "0: must be at least 1"));
+    }
     if job.max_iterations == Some(0) {
         return Err(Error::param_value(
             Param::MaxIterations,
@@ -316,6 +319,9 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         tolerance: non_negative(Param::Tolerance, job.tolerance)?,
         max_newton: job.max_iterations.unwrap_or(job.max_newton),
         sweeps: job.sweeps,
+        threads: job
+            .threads
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
         colliders,
         wind,
     };
@@ -847,6 +853,7 @@ fn report(
             SolverKind::Fast => 0,
             SolverKind::Newton => params.sweeps,
         },
+        threads: params.threads,
         material: prepared.material.clone(),
         stiffness: prepared.stiffness,
         bend_stiffness: prepared.bend_stiffness,

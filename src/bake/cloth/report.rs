@@ -40,6 +40,8 @@ pub struct ClothReport {
     pub max_iterations: usize,
     /// Gauss–Seidel sweeps after each Newton iteration (0 for the fast solver).
     pub sweeps: usize,
+    /// Threads the bake could use (`--threads`).
+    pub threads: usize,
     /// The fabric, when the body uses the material model (`None`: the labs' springs).
     pub material: Option<MaterialReport>,
     /// Spring stiffness used, N/m (the labs' model; the largest spring's for a material).
