@@ -32,6 +32,9 @@ use std::time::{Duration, Instant};
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
 use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Accum, MatMut, MatRef, Par, Side};
@@ -163,8 +166,9 @@ impl SplitCholesky {
     /// single precision. Returns false when that fails (H, a half or the top's C is not
     /// positive definite in single precision).
     pub fn factor(&mut self, values: &[f64]) -> bool {
-        lock(&self.halves[1]).load(values);
-        self.run(FACTOR, |half| half.load(values));
+        run(&self.halves, &mut self.helper, FACTOR, |half| {
+            half.load(values)
+        });
         let (a, b) = (lock(&self.halves[0]), lock(&self.halves[1]));
         if a.failed || b.failed {
             return false;
@@ -197,8 +201,9 @@ impl SplitCholesky {
     pub fn solve(&mut self, x: &mut [f32]) {
         assert_eq!(x.len(), self.n, "right-hand side length");
         let nt = self.top.len();
-        lock(&self.halves[1]).gather(x);
-        self.run(FORWARD, |half| half.gather(x));
+        run(&self.halves, &mut self.helper, FORWARD, |half| {
+            half.gather(x)
+        });
         {
             let (a, b) = (lock(&self.halves[0]), lock(&self.halves[1]));
             for (i, (t, &c)) in self.xt.iter_mut().zip(&self.top).enumerate() {
@@ -206,25 +211,10 @@ impl SplitCholesky {
             }
         }
         // L_C·L_Cᵀ·x_T = the top's right-hand side, less the halves' updates.
-        let l = &self.dense;
-        for j in 0..nt {
-            let col = &l[j * nt..(j + 1) * nt];
-            let xj = self.xt[j] / col[j];
-            self.xt[j] = xj;
-            for (t, lij) in self.xt[j + 1..].iter_mut().zip(&col[j + 1..]) {
-                *t -= lij * xj;
-            }
-        }
-        for j in (0..nt).rev() {
-            let col = &l[j * nt..(j + 1) * nt];
-            let below: f32 = col[j + 1..]
-                .iter()
-                .zip(&self.xt[j + 1..])
-                .map(|(a, b)| a * b)
-                .sum();
-            self.xt[j] = (self.xt[j] - below) / col[j];
-        }
-        lock(&self.halves[1]).set_top(&self.xt);
+        let l = MatRef::from_column_major_slice(&self.dense, nt, nt);
+        let mut xt = MatMut::from_column_major_slice_mut(&mut self.xt, nt, 1);
+        solve_lower_triangular_in_place(l, xt.as_mut(), Par::Seq);
+        solve_upper_triangular_in_place(l.transpose(), xt, Par::Seq);
         let xt = &self.xt;
         run(&self.halves, &mut self.helper, BACKWARD, |half| {
             half.set_top(xt)
@@ -236,21 +226,17 @@ impl SplitCholesky {
             x[c as usize] = *t;
         }
     }
-
-    /// Runs `task` on half B (on the helper, or here after half A) and, on this thread,
-    /// `prepare` then the task on half A. The caller prepares half B before.
-    fn run(&mut self, task: usize, prepare: impl FnOnce(&mut Half)) {
-        run(&self.halves, &mut self.helper, task, prepare);
-    }
 }
 
-/// [`SplitCholesky::run`] on `halves` with `helper`.
+/// Runs `prepare` on both halves, then `task`: on half B on the helper when there is one
+/// (while this thread runs it on half A), else on half A and then half B here.
 fn run(
     halves: &[Arc<Mutex<Half>>; 2],
     helper: &mut Option<Helper>,
     task: usize,
-    prepare: impl FnOnce(&mut Half),
+    prepare: impl Fn(&mut Half),
 ) {
+    prepare(&mut lock(&halves[1]));
     if let Some(helper) = helper {
         helper.hand(task);
         {
