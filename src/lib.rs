@@ -31,6 +31,7 @@ pub mod export;
 pub mod ik;
 pub mod inspect;
 pub mod io;
+pub mod measure;
 pub mod mesh;
 pub mod param;
 pub mod path;

@@ -54,6 +54,8 @@ params! {
     Solver => "solver",
     /// The stopping tolerance.
     Tolerance => "tolerance",
+    /// The strain above which a frame is flagged.
+    StrainLimit => "strain_limit",
     /// The iteration cap per step or frame.
     MaxIterations => "max_iterations",
     /// The fast cloth solver's iteration cap.

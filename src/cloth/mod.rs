@@ -133,6 +133,7 @@ impl BakeParams {
 }
 
 pub use crate::data::FrameCache;
+use crate::measure::{FrameMeasure, FrameQuality, Soup};
 
 /// What a bake produced.
 #[derive(Debug, Clone)]
@@ -141,8 +142,13 @@ pub struct Simulation {
     pub cache: FrameCache,
     /// Per-frame solver figures (frames 1..=N): iterations summed over substeps, worst residual.
     pub frames: Vec<StepStats>,
-    /// Wall time spent stepping, seconds.
+    /// Wall time spent stepping, seconds (measuring excluded).
     pub seconds: f64,
+    /// Each frame's strain and crossings (frames 0..=N, the initial state first), measured on the
+    /// positions as cached (single precision) against the bodies as the solver saw them.
+    pub quality: Vec<FrameQuality>,
+    /// Wall time spent measuring them, seconds.
+    pub seconds_measure: f64,
 }
 
 /// Builds the solver named by `params` for `model`.
@@ -219,6 +225,10 @@ pub fn simulate_driven(
     };
     let mut cache = FrameCache::new(all.len());
     cache.push(&all);
+    let measure = BodyMeasure::new(model, params, driven.and_then(|d| d.body_shape));
+    let mut seconds_measure = 0.0;
+    let mut quality = Vec::with_capacity(params.frames + 1);
+    quality.push(measure.frame(&all, body_before.as_deref(), &mut seconds_measure));
     let sys = solver.system();
     let mut x = sys.gather(&all);
     let mut v = vec![DVec3::ZERO; x.len()];
@@ -267,14 +277,71 @@ pub fn simulate_driven(
         guard.check(frame, &x, solver.system())?;
         solver.system().scatter(&x, &mut all);
         cache.push(&all);
+        quality.push(measure.frame(&all, body_before.as_deref(), &mut seconds_measure));
         frames.push(stats);
         progress(frame);
     }
     Ok(Simulation {
         cache,
         frames,
-        seconds: start.elapsed().as_secs_f64(),
+        seconds: start.elapsed().as_secs_f64() - seconds_measure,
+        quality,
+        seconds_measure,
     })
+}
+
+/// The per-frame measurement of a bake: the cloth, and its mesh colliders (the moving body in
+/// place of collider `moving`, when driven).
+struct BodyMeasure {
+    cloth: FrameMeasure,
+    meshes: Vec<(usize, std::sync::Arc<collide::MeshCollider>)>,
+    moving: Option<usize>,
+}
+
+impl BodyMeasure {
+    fn new(model: &ClothModel, params: &BakeParams, moving: Option<usize>) -> Self {
+        BodyMeasure {
+            cloth: FrameMeasure::new(model.positions(), &model.mesh.triangles),
+            meshes: params
+                .colliders
+                .shapes
+                .iter()
+                .enumerate()
+                .filter_map(|(i, c)| match c {
+                    collide::Collider::Mesh(m) => Some((i, m.clone())),
+                    _ => None,
+                })
+                .collect(),
+            moving,
+        }
+    }
+
+    /// Measures `all` (model order) rounded as the cache stores it, `body` standing in for the
+    /// moving collider; adds the time taken to `seconds`.
+    fn frame(
+        &self,
+        all: &[DVec3],
+        body: Option<&collide::MeshCollider>,
+        seconds: &mut f64,
+    ) -> FrameQuality {
+        let start = Instant::now();
+        let written: Vec<DVec3> = all.iter().map(|p| p.as_vec3().as_dvec3()).collect();
+        let bodies: Vec<Soup<'_>> = self
+            .meshes
+            .iter()
+            .map(|(i, m)| match body {
+                Some(b) if Some(*i) == self.moving => b,
+                _ => m.as_ref(),
+            })
+            .map(|m| Soup {
+                positions: m.positions(),
+                triangles: m.triangles(),
+            })
+            .collect();
+        let q = self.cloth.frame(&written, &bodies);
+        *seconds += start.elapsed().as_secs_f64();
+        q
+    }
 }
 
 /// The aerodynamics of a bake with model-ordered copies of the state (pinned particles keep

@@ -6,8 +6,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::{
-    check_export_options, prepare_cloth, report, CacheReport, CharacterReport, ClothJob,
-    ClothReport, Exported, PreparedCloth, Switch,
+    check_export_options, prepare_cloth, quality_report, report, CacheReport, CharacterReport,
+    ClothJob, ClothReport, Exported, PreparedCloth, Switch,
 };
 use crate::cloth::collide::Collider;
 use crate::cloth::drive::CharacterDrive;
@@ -209,10 +209,12 @@ pub fn bake_on_character(
         vat: None,
     };
     let seconds_export = export_start.elapsed().as_secs_f64();
+    let quality = quality_report(&sim, first_written, job.strain_limit);
     let mut out = report(
         &prepared,
         job,
         &sim.frames,
+        quality,
         sim.seconds,
         seconds_export,
         exported,

@@ -87,6 +87,8 @@ pub mod defaults {
     /// force per particle relative to its weight, roughly). 0.1 is visually converged on
     /// garments: hem heights within 0.5 mm of a 1e-3 solve (docs/performance.md).
     pub const TOLERANCE: f64 = 0.1;
+    /// Edge stretch (l / l₀ − 1) above which a written frame is flagged as torn.
+    pub const STRAIN_LIMIT: f64 = 0.2;
     /// The solver when none is named.
     pub const SOLVER: crate::cloth::SolverKind = crate::cloth::SolverKind::Newton;
     /// Cells per side of the lab-cloth grid.
@@ -152,6 +154,10 @@ pub struct ClothJob {
     /// falls below R; steps that end above it are flagged.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::TOLERANCE, value_name = "R"))]
     pub tolerance: f64,
+    /// Written frames with an edge stretched more than this (l / l₀ − 1, a fraction: 0.2 is
+    /// 20 %) are flagged in the report and on the terminal.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::STRAIN_LIMIT, value_name = "S"))]
+    pub strain_limit: f64,
     /// Iterations per step at most, for whichever solver runs [default: newton 200, fast 500].
     #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
     #[serde(alias = "max-iterations")]
@@ -436,6 +442,7 @@ impl Default for ClothJob {
             substeps: defaults::SUBSTEPS,
             solver: defaults::SOLVER,
             tolerance: defaults::TOLERANCE,
+            strain_limit: defaults::STRAIN_LIMIT,
             max_iterations: None,
             iterations: defaults::ITERATIONS,
             max_newton: crate::cloth::newton::DEFAULT_MAX_ITERATIONS,

@@ -35,6 +35,7 @@ use crate::export::vat::{encode_vat, vat_paths};
 use crate::export::{BasisOptions, Compression, QuantizeMode};
 use crate::export::{MorphOptions, RenderFrames, VatOptions, Written};
 use crate::io::{collider, gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
+use crate::measure::FrameQuality;
 use crate::mesh::Mesh;
 use crate::param::{Param, Text};
 use crate::spec::{non_negative, positive};
@@ -81,6 +82,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             "0: must be at least 1",
         ));
     }
+    positive(Param::StrainLimit, job.strain_limit)?;
     if job.threads == Some(0) {
         return Err(Error::param_value(Param::Threads, "0: must be at least 1"));
     }
@@ -678,14 +680,83 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
     };
     let exported = export(job, model, &sim.cache, options)?;
     let seconds_export = export_start.elapsed().as_secs_f64();
+    let quality = quality_report(&sim, 0, job.strain_limit);
     Ok(report(
         &prepared,
         job,
         &sim.frames,
+        quality,
         sim.seconds,
         seconds_export,
         exported,
     ))
+}
+
+/// The quality section of written frames `first..` of `sim` (frame `first` is the output's
+/// frame 0; it is flagged only when simulated, `first > 0`).
+pub(crate) fn quality_report(sim: &Simulation, first: usize, strain_limit: f64) -> QualityReport {
+    let q = &sim.quality[first..];
+    let flagged = |past: &dyn Fn(&FrameQuality) -> bool| -> Vec<usize> {
+        q.iter()
+            .enumerate()
+            .filter(|&(i, f)| (i > 0 || first > 0) && past(f))
+            .map(|(i, _)| i)
+            .collect()
+    };
+    QualityReport {
+        strain_limit,
+        max_strain: q.iter().map(|f| f.max_strain).collect(),
+        min_strain: q.iter().map(|f| f.min_strain).collect(),
+        self_crossings: q.iter().map(|f| f.self_crossings).collect(),
+        body_crossings: q.iter().map(|f| f.body_crossings).collect(),
+        overstrained_frames: flagged(&|f| f.max_strain > strain_limit),
+        intersecting_frames: flagged(&|f| f.self_crossings + f.body_crossings > 0),
+        seconds: sim.seconds_measure,
+    }
+}
+
+/// The warnings of a quality section: frames past the strain limit, frames with crossings.
+fn quality_warnings(q: &QualityReport) -> Vec<Text> {
+    let mut out = Vec::new();
+    let written = q.max_strain.len();
+    if let Some(&worst) = q
+        .overstrained_frames
+        .iter()
+        .max_by(|&&a, &&b| q.max_strain[a].total_cmp(&q.max_strain[b]))
+    {
+        out.push(text!(
+            format!(
+                "{} of {written} written frames stretch an edge past the strain limit {} % \
+                 (worst {:.1} % at frame {worst}); see \
+                 quality.overstrained_frames, or raise ",
+                q.overstrained_frames.len(),
+                q.strain_limit * 100.0,
+                q.max_strain[worst] * 100.0,
+            ),
+            Param::StrainLimit
+        ));
+    }
+    if !q.intersecting_frames.is_empty() {
+        let most = |v: &[usize]| {
+            q.intersecting_frames
+                .iter()
+                .map(|&i| (v[i], i))
+                .max_by_key(|&(n, i)| (n, std::cmp::Reverse(i)))
+                .unwrap_or((0, 0))
+        };
+        let (own, own_at) = most(&q.self_crossings);
+        let (body, body_at) = most(&q.body_crossings);
+        out.push(text!(format!(
+            "{} of {written} written frames have crossing triangles (at most {own} pairs of the \
+             cloth with itself, at frame {own_at}; {body} with a body, at frame {body_at}; frame \
+             0 has {} and {}): the cloth does not collide with itself; see \
+             quality.intersecting_frames",
+            q.intersecting_frames.len(),
+            q.self_crossings[0],
+            q.body_crossings[0],
+        )));
+    }
+    out
 }
 
 /// The colliders as static meshes named `collider_1`, `collider_2`...; planes as squares twice
@@ -818,6 +889,7 @@ fn report(
     prepared: &PreparedCloth,
     job: &ClothJob,
     frames: &[StepStats],
+    quality: QualityReport,
     seconds_simulate: f64,
     seconds_export: f64,
     exported: Exported,
@@ -881,8 +953,10 @@ fn report(
         warnings: {
             let mut w = model.warnings.clone();
             w.extend(convergence_warning(frames, params.tolerance));
+            w.extend(quality_warnings(&quality));
             w
         },
+        quality,
     }
 }
 

@@ -60,6 +60,9 @@ pub struct ClothReport {
     pub residuals: Vec<f64>,
     /// Frames with a step that ended above the tolerance.
     pub unconverged_frames: Vec<usize>,
+    /// Every written frame's largest edge strain and crossing triangles, and the frames past
+    /// their limits.
+    pub quality: QualityReport,
     /// Seconds spent simulating.
     pub seconds_simulate: f64,
     /// Milliseconds per frame.
@@ -82,6 +85,30 @@ pub struct ClothReport {
     pub character: Option<CharacterReport>,
     /// Non-fatal quirks of the input.
     pub warnings: Vec<Text>,
+}
+
+/// What an exact reader finds in every written frame (frame 0 of the output first): edge
+/// strain against the input's edge lengths, and triangle pairs that cross, measured on the
+/// positions as written (single precision) with exact orientation tests
+/// ([`crate::measure::crossing`]).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct QualityReport {
+    /// Frames with an edge stretched past this (l / l₀ − 1) are flagged.
+    pub strain_limit: f64,
+    /// Largest edge stretch of each written frame (l / l₀ − 1).
+    pub max_strain: Vec<f64>,
+    /// Largest edge compression of each written frame (l / l₀ − 1, ≤ 0).
+    pub min_strain: Vec<f64>,
+    /// Pairs of the cloth's triangles (sharing no vertex) that cross, each written frame.
+    pub self_crossings: Vec<usize>,
+    /// Pairs (cloth triangle, body or mesh-collider triangle) that cross, each written frame.
+    pub body_crossings: Vec<usize>,
+    /// Simulated written frames with an edge past the strain limit.
+    pub overstrained_frames: Vec<usize>,
+    /// Simulated written frames with any crossing pair (cloth–cloth or cloth–body).
+    pub intersecting_frames: Vec<usize>,
+    /// Seconds spent measuring (not counted in `seconds_simulate`).
+    pub seconds: f64,
 }
 
 /// A bake driven by an animated character (`--rig`). The report's per-frame arrays
