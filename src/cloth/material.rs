@@ -15,7 +15,7 @@
 //!   with only `compression`·k_e (Choi and Ko 2002; Blender's cloth has a separate compression
 //!   stiffness too). This is also what makes the implicit step solvable: a spring that resists
 //!   compression as hard as tension turns every step into a buckling problem, whose Hessian is
-//!   indefinite and on which Newton crawls (docs/solver-study.md).
+//!   indefinite and on which Newton crawls (`docs/cloth.md`, "Materials").
 //! - **Bending**: the quadratic isometric bending energy of Bergou, Wardetzky, Harmon, Zorin and
 //!   Grinspun (2006), E = ½·B·Σ_e |Σᵢ Kᵢ xᵢ|²/(A₁+A₂) over interior edges, with Kᵢ the
 //!   cotangent weights of the edge's four vertices and A₁, A₂ its triangles' areas. It
@@ -147,14 +147,14 @@ pub const FABRIC_COMPRESSION: f64 = 0.001;
 /// The default jamming strain of every preset ([`Material::jam_strain`], `--jam-strain`): a
 /// fabric edge compressed by about 6 % of its length resists with its tension stiffness, added
 /// back along a smoothstep ramp from 3 % to 9 % ([`super::system::JAM_RAMP`]). Chosen by
-/// measurement (`docs/performance.md`, stops 22 and 32). At stop 22, on the 8k-vertex skirt
-/// hanging from its waist over 30 frames, a ramp of ±50 % took the fewest Newton iterations, and
-/// 8 % the fewest of 7, 8 and 10 % (466 against 493 and 501). At stop 32, with a cap of 200
-/// iterations, 6 % kept every edge of the garments bench within 7.4 % of its rest length, the
-/// skirts crushed on the table included, where 8 % let circle_skirt's edges shorten by 8.2 %
-/// and 7 % skirt8K's by 8.3 %. Every frame of every case still converged. The hanging skirt's
-/// default 120 frames took 306 Newton iterations against 315, though its first 30 frames took
-/// 175 against 152.
+/// measurement (`docs/performance.md`, "A jamming ramp instead of a step" and "Sweeps on two
+/// cores, and a cap of 200"). On the 8k-vertex skirt hanging from its waist over 30 frames, a
+/// ramp of ±50 % took the fewest Newton iterations, and 8 % the fewest of 7, 8 and 10 % (466
+/// against 493 and 501). With a cap of 200 iterations and the sweeps, 6 % kept every edge of
+/// the garments bench within 7.4 % of its rest length, the skirts crushed on the table
+/// included, where 8 % let circle_skirt's edges shorten by 8.2 % and 7 % skirt8K's by 8.3 %.
+/// Every frame of every case still converged. The hanging skirt's default 120 frames took 306
+/// Newton iterations against 315, though its first 30 frames took 175 against 152.
 pub const DEFAULT_JAM_STRAIN: f64 = 0.06;
 
 /// The default material (`cotton`).

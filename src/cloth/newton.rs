@@ -50,7 +50,7 @@
 //! the bake does not depend on the thread count. On the 8k-vertex skirt (a top of 330 of its
 //! 23,979 unknowns) a factorisation takes 12.7 ms on two threads, against 21.9 ms for faer's
 //! whole factor and 22.7 ms for the halves one after the other on one thread
-//! (`docs/performance.md`, stop 33).
+//! (`docs/performance.md`, "The factor's two halves on two cores").
 //!
 //! Contact (see [`NewtonContact`]): a projected Newton method. At each iterate the particles
 //! resting on a collider whose gradient pushes them into it are held: their normal component is
@@ -109,7 +109,8 @@ pub const DEFAULT_SWEEPS: usize = 10;
 /// against a table or a sphere buckles into new folds and takes 50–140 on a few frames after
 /// impact (circle_skirt on the table over 30 frames: 95, 140, 103, 108 on four frames, every
 /// frame converged; at a cap of 100, 25 of 30, at 50, 22). Only frames that would otherwise end
-/// unconverged pay for the higher cap (`docs/performance.md`, stops 30 and 32).
+/// unconverged pay for the higher cap (`docs/performance.md`, "A cap of 100 Newton iterations"
+/// and "Sweeps on two cores, and a cap of 200").
 pub const DEFAULT_MAX_ITERATIONS: usize = 200;
 
 /// Armijo sufficient-decrease constant of the backtracking line search.
@@ -121,7 +122,7 @@ const ARMIJO: f64 = 1e-4;
 /// transverse curvature is left out of the projected Hessian) and in the slow phase where full
 /// steps converge only linearly. Over 30 frames of the 8k-vertex skirt hanging from its waist the
 /// longer step takes Newton from 173 to 158 iterations (with a 1 % toe, 148 to 137; doubling up
-/// to three times there, 142; `docs/performance.md`, stop 29).
+/// to three times there, 142; `docs/performance.md`, "A longer step, and a wider toe measured").
 const LONGER_STEP: f64 = 2.0;
 
 /// Halvings before the line search gives up and takes the smallest step tried.

@@ -499,7 +499,8 @@ pub const JAM_RAMP: f64 = 0.5;
 /// for 30 frames took 404 iterations instead of 451 (`docs/performance.md`). A wider toe
 /// converges sooner still (with the sweeps and the longer step: 1 % 137 iterations against 158)
 /// but makes a garment sway longer: the robot skirt demo's loop seam grew from 2.1 mm to 7.0 mm,
-/// and to 17 mm after six warm-up loops (`docs/performance.md`, stop 29). The toe lengthens a
+/// and to 17 mm after six warm-up loops (`docs/performance.md`, "A longer step, and a wider toe
+/// measured"). The toe lengthens a
 /// spring under a given tension by half the toe, (k − kc)/k · TOE_STRAIN/2 of its rest length.
 pub const TOE_STRAIN: f64 = 0.003;
 
