@@ -746,12 +746,20 @@ fn quality_warnings(q: &QualityReport) -> Vec<Text> {
         };
         let (own, own_at) = most(&q.self_crossings);
         let (body, body_at) = most(&q.body_crossings);
+        let mut worst = Vec::new();
+        if own > 0 {
+            worst.push(format!(
+                "{own} pairs of the cloth with itself at frame {own_at}"
+            ));
+        }
+        if body > 0 {
+            worst.push(format!("{body} with a body at frame {body_at}"));
+        }
         out.push(text!(format!(
-            "{} of {written} written frames have crossing triangles (at most {own} pairs of the \
-             cloth with itself, at frame {own_at}; {body} with a body, at frame {body_at}; frame \
-             0 has {} and {}): the cloth does not collide with itself; see \
-             quality.intersecting_frames",
+            "{} of {written} written frames have crossing triangles (at most {}; frame 0 has {} \
+             and {}); the cloth does not collide with itself: see quality.intersecting_frames",
             q.intersecting_frames.len(),
+            worst.join(", "),
             q.self_crossings[0],
             q.body_crossings[0],
         )));
