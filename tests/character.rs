@@ -170,8 +170,8 @@ fn character_options_are_checked_before_baking() {
 fn every_joint_is_posed(out: &Path) {
     use gltf::animation::util::ReadOutputs;
     use gltf::animation::Property;
-    let (doc, buffers, _) = gltf::import(out).unwrap();
-    let (input, _, _) = gltf::import(common::mesh_path("Fox.glb")).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(out).unwrap();
+    let (input, _, _) = common::gltf_read::import(common::mesh_path("Fox.glb")).unwrap();
     let baked = doc.animations().next().unwrap();
     let walk = input
         .animations()
@@ -304,8 +304,8 @@ fn every_channel_of_the_driving_animation_is_carried_per_loop() {
     };
     bake_cloth(&job, &mut |_, _| {}).unwrap();
 
-    let (input, in_buffers, _) = gltf::import(&rig).unwrap();
-    let (doc, buffers, _) = gltf::import(&out).unwrap();
+    let (input, in_buffers, _) = common::gltf_read::import(&rig).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(&out).unwrap();
     let driving = input
         .animations()
         .find(|a| a.name() == Some("Sitting"))
@@ -314,7 +314,7 @@ fn every_channel_of_the_driving_animation_is_carried_per_loop() {
     // (times, values flattened per key) of a channel, by the gltf crate's reader.
     fn read(
         ch: &gltf::animation::Channel<'_>,
-        buffers: &[gltf::buffer::Data],
+        buffers: &[common::gltf_read::Data],
     ) -> (Vec<f32>, Vec<Vec<f32>>) {
         let r = ch.reader(|b| Some(&buffers[b.index()]));
         let times: Vec<f32> = r.read_inputs().unwrap().collect();

@@ -383,7 +383,7 @@ fn up_z_turns_a_z_up_input_to_y_up() {
         ],
     );
     assert_eq!(code, 0, "{err}");
-    let (doc, buffers, _) = gltf::import(dir.path().join("up.glb")).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(dir.path().join("up.glb")).unwrap();
     let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
     let got: Vec<[f32; 3]> = prim
         .reader(|b| Some(&buffers[b.index()]))
@@ -463,7 +463,7 @@ fn obj_object_positions(path: &Path, object: Option<&str>) -> Vec<[f64; 3]> {
 
 /// Mesh `name` of a written glTF: its distinct positions (rounded to 0.01 mm) and triangle count.
 fn written_mesh(path: &Path, name: &str) -> (Vec<[i64; 3]>, usize) {
-    let (doc, buffers, _) = gltf::import(path).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(path).unwrap();
     let mesh = doc
         .meshes()
         .find(|m| m.name() == Some(name))
@@ -688,7 +688,7 @@ fn every_cloth_encoding_records_fps_and_frame_range() {
         args.extend_from_slice(extra);
         let (code, _, err) = run(dir.path(), &args);
         assert_eq!(code, 0, "{out}: {err}");
-        let (doc, buffers, _) = gltf::import(dir.path().join(out)).unwrap();
+        let (doc, buffers, _) = common::gltf_read::import(dir.path().join(out)).unwrap();
         let extras: serde_json::Value =
             serde_json::from_str(doc.as_json().asset.extras.as_ref().expect(out).get()).unwrap();
         assert_eq!(
@@ -739,7 +739,7 @@ fn blenders_node_n_names_bake_an_unnamed_rig() {
             ],
         );
         assert_eq!(code, 0, "{chain}: {err}");
-        let (doc, buffers, _) = gltf::import(dir.path().join(out)).unwrap();
+        let (doc, buffers, _) = common::gltf_read::import(dir.path().join(out)).unwrap();
         let anim = doc.animations().next().unwrap();
         let mut channels: Vec<(usize, String, Vec<f32>)> = anim
             .channels()
@@ -836,7 +836,7 @@ fn unused_positions_are_reported_on_the_terminal() {
         lines[1],
         "warning: stray: 2 positions are used by no face and were left out"
     );
-    let (doc, _, _) = gltf::import(dir.path().join("stray.glb")).unwrap();
+    let (doc, _, _) = common::gltf_read::import(dir.path().join("stray.glb")).unwrap();
     let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
     assert_eq!(prim.get(&gltf::Semantic::Positions).unwrap().count(), 4);
 }

@@ -94,7 +94,7 @@ impl Played {
 
 /// Decodes a VEC3 accessor from the raw bytes: float, or (normalised) integers, with stride and
 /// sparse substitution.
-fn read_vec3(a: &gltf::Accessor<'_>, buffers: &[gltf::buffer::Data]) -> Vec<Vec3> {
+fn read_vec3(a: &gltf::Accessor<'_>, buffers: &[common::gltf_read::Data]) -> Vec<Vec3> {
     use gltf::accessor::DataType;
     assert_eq!(a.dimensions(), gltf::accessor::Dimensions::Vec3);
     let size = a.data_type().size();
@@ -162,11 +162,13 @@ fn read_vec3(a: &gltf::Accessor<'_>, buffers: &[gltf::buffer::Data]) -> Vec<Vec3
 /// The document and buffers of `path`. The gltf crate validates extensionsRequired against the
 /// extensions it implements, which do not include KHR_mesh_quantization: parse without that
 /// check (the accessors are decoded here, by `read_vec3`).
-fn open(path: &Path) -> (gltf::Document, Vec<gltf::buffer::Data>) {
+fn open(path: &Path) -> (gltf::Document, Vec<common::gltf_read::Data>) {
     let bytes = std::fs::read(path).unwrap();
     let gltf =
         gltf::Gltf::from_slice_without_validation(&bytes).expect("parse with the gltf crate");
-    let buffers = gltf::import_buffers(&gltf.document, path.parent(), gltf.blob.clone()).unwrap();
+    let buffers =
+        common::gltf_read::import_buffers(&gltf.document, path.parent(), gltf.blob.clone())
+            .unwrap();
     (gltf.document, buffers)
 }
 

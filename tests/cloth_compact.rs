@@ -169,7 +169,7 @@ fn sparse_accessors_follow_the_spec() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sparse.gltf");
     bake_cloth(&half_pinned_plane(&out, 8), &mut |_, _| {}).unwrap();
-    let (doc, buffers, _) = gltf::import(&out).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(&out).unwrap();
     let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
     let reader = prim.reader(|b| Some(&buffers[b.index()]));
     let deltas: Vec<Vec<[f32; 3]>> = reader
@@ -268,7 +268,7 @@ fn a_resting_target_is_one_explicit_zero() {
             .iter()
             .all(|v| *v == Vec3::ZERO));
     }
-    let (doc, _, _) = gltf::import(&out).unwrap();
+    let (doc, _, _) = common::gltf_read::import(&out).unwrap();
     for acc in doc.accessors().filter(|a| a.sparse().is_some()) {
         assert_eq!(acc.sparse().unwrap().count(), 1);
         assert!(acc.view().is_none());

@@ -21,7 +21,7 @@ struct Loaded {
 }
 
 fn load(path: &Path) -> Loaded {
-    let (doc, buffers, _) = gltf::import(path).expect("reload with the gltf crate");
+    let (doc, buffers, _) = common::gltf_read::import(path).expect("reload with the gltf crate");
     assert_eq!(doc.meshes().count(), 1);
     let mesh = doc.meshes().next().unwrap();
     let prim = mesh.primitives().next().unwrap();
@@ -196,7 +196,7 @@ fn step_interpolation_and_no_normals_are_honoured() {
     job.interpolation = scenebake::export::Interpolation::Step;
     job.normals = scenebake::bake::cloth::Switch::Off;
     bake_cloth(&job, &mut |_, _| {}).unwrap();
-    let (doc, _, _) = gltf::import(&out).unwrap();
+    let (doc, _, _) = common::gltf_read::import(&out).unwrap();
     let sampler = doc.animations().next().unwrap().samplers().next().unwrap();
     assert_eq!(
         sampler.interpolation(),

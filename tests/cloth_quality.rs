@@ -110,7 +110,7 @@ fn brute_between(pa: &[Vec3], ta: &[[u32; 3]], pb: &[Vec3], tb: &[[u32; 3]]) -> 
 
 /// The first primitive's indices of mesh `index`, and the positions of the node named `node`.
 fn mesh_of(path: &Path, node: &str) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let (doc, buffers, _) = gltf::import(path).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(path).unwrap();
     let node = doc
         .nodes()
         .find(|n| n.name() == Some(node))
@@ -128,7 +128,7 @@ fn mesh_of(path: &Path, node: &str) -> (Vec<Vec3>, Vec<[u32; 3]>) {
 }
 
 fn cloth_triangles(path: &Path) -> Vec<[u32; 3]> {
-    let (doc, buffers, _) = gltf::import(path).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(path).unwrap();
     let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
     let r = prim.reader(|b| Some(&buffers[b.index()]));
     let i: Vec<u32> = r.read_indices().unwrap().into_u32().collect();

@@ -1,5 +1,7 @@
 //! Every shipped surface or volume mesh loads, agrees with an independent reader, and bakes.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use scenebake::bake::cloth::{bake_cloth, load_body, ClothJob, ClothSource};
@@ -33,7 +35,7 @@ fn every_mesh_bakes_a_few_frames() {
         job.frames = Some(4);
         let report =
             bake_cloth(&job, &mut |_, _| {}).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let (doc, _, _) = gltf::import(&out).unwrap();
+        let (doc, _, _) = common::gltf_read::import(&out).unwrap();
         let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
         assert_eq!(prim.morph_targets().count(), 4, "{}", path.display());
         assert!(

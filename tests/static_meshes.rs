@@ -18,7 +18,7 @@ struct Loaded {
 }
 
 fn load_statics(path: &std::path::Path) -> Vec<Loaded> {
-    let (doc, buffers, _) = gltf::import(path).expect("reload with the gltf crate");
+    let (doc, buffers, _) = common::gltf_read::import(path).expect("reload with the gltf crate");
     let scene = doc.default_scene().expect("a default scene");
     let nodes: Vec<gltf::Node> = scene.nodes().collect();
     // The cloth stays mesh 0 and the scene's first node, with its animation.

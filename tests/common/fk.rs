@@ -12,12 +12,12 @@ use glam::{DMat4, DQuat, DVec3};
 /// A loaded document with its buffers.
 pub struct Loaded {
     pub doc: gltf::Document,
-    pub buffers: Vec<gltf::buffer::Data>,
+    pub buffers: Vec<super::gltf_read::Data>,
 }
 
 pub fn load(path: &Path) -> Loaded {
     let (doc, buffers, _images) =
-        gltf::import(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        super::gltf_read::import(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     Loaded { doc, buffers }
 }
 

@@ -7,6 +7,7 @@
 //!   run without any writer;
 //! - [`geometry`]: analytic signed distances to planes, spheres and boxes, and a brute-force
 //!   point–triangle distance with a winding-number inside test for meshes;
+//! - [`gltf_read`]: a glTF's buffers read by the specification (the `gltf` crate parses);
 //! - [`cli`]: running the binary, signalling it, and listing what it left in a folder;
 //! - [`strain`]: the largest stretch and compression of a bake's edges, from its frames.
 #![allow(dead_code, reason = "each test file uses a subset")]
@@ -14,6 +15,7 @@
 pub mod cli;
 pub mod fk;
 pub mod geometry;
+pub mod gltf_read;
 pub mod morph;
 pub mod strain;
 

@@ -106,7 +106,7 @@ fn vec3s(it: impl Iterator<Item = [f32; 3]>) -> Vec<Vec3> {
 
 /// Reloads a morph-target glTF with the `gltf` crate.
 pub fn load_morph(path: &Path) -> Morph {
-    let (doc, buffers, _) = gltf::import(path).expect("reload with the gltf crate");
+    let (doc, buffers, _) = super::gltf_read::import(path).expect("reload with the gltf crate");
     let mesh = doc.meshes().next().unwrap();
     let prim = mesh.primitives().next().unwrap();
     let reader = prim.reader(|b| Some(&buffers[b.index()]));
