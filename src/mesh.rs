@@ -37,10 +37,6 @@ pub struct Mesh {
     pub groups: BTreeMap<String, Vec<u32>>,
     /// For each particle, its index among the file's positions (pins by `index:` use file order).
     pub file_index: Vec<u32>,
-    /// Positions of the input file the body leaves out (an OBJ's positions used by no face, or
-    /// by faces outside `--object`), with their index among the file's positions: a point cache
-    /// holds every position of the file, these at rest.
-    pub left_out: Vec<(u32, DVec3)>,
     /// Non-fatal quirks found while loading (skipped degenerate faces, unused positions...).
     pub warnings: Vec<String>,
 }

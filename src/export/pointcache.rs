@@ -2,13 +2,12 @@
 //! vertex order, for Blender's Mesh Cache modifier (and 3ds Max, LightWave, Houdini...) on the
 //! user's own mesh.
 //!
-//! One point per position of the input file, in file order ([`point_sources`]): an OBJ's `v`
-//! lines, a `.tet`'s nodes, the lab-cloth grid's particles, a glTF input's distinct positions (its
-//! vertices split at seams count once). Positions the bake does not simulate (an OBJ's positions
-//! used by no face, or by faces outside `--object`) keep their placed rest position in every
-//! frame, so the cache's point count is the file's and the cache applies to the whole file as
-//! imported. Positions are the bake's: metres, +Y up, after `--up`, `--scale` and `--translate`
-//! (as the glTF's); one sample per frame, frame 0 the initial state.
+//! One point per particle, in the input's order: an OBJ's positions that a face uses (with
+//! `--object`, that object's faces), in file order, which is the mesh Blender's OBJ importer
+//! makes (it leaves unused positions out too); a `.tet`'s nodes; the lab-cloth grid's particles;
+//! a glTF input's distinct positions (its vertices split at seams count once). Positions are the
+//! bake's: metres, +Y up, after `--up`, `--scale` and `--translate` (as the glTF's); one sample
+//! per frame, frame 0 the initial state.
 //!
 //! - PC2 (little-endian): the 12 bytes `POINTCACHE2\0`, int32 version 1, int32 points, float32
 //!   start frame (the glTF's first key time × fps: 0 for a cloth bake), float32 sample rate 1
@@ -20,8 +19,6 @@
 //! at scene frame `f`, linearly interpolated between samples, whatever the scene's fps.
 
 use std::path::{Path, PathBuf};
-
-use glam::Vec3;
 
 use crate::data::FrameCache;
 use crate::error::{Error, Result};
@@ -48,15 +45,6 @@ impl PointCacheFormat {
     }
 }
 
-/// Where one point of a cache takes its position.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum PointSource {
-    /// A simulated particle.
-    Particle(u32),
-    /// A position the bake leaves out, at its placed rest position, m.
-    Fixed(Vec3),
-}
-
 /// The timing of a cache.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointCacheOptions {
@@ -79,52 +67,12 @@ pub struct EncodedPointCache {
     pub frames: usize,
 }
 
-/// The points of a cache for `mesh`, in the input file's position order (see the module docs).
-///
-/// # Errors
-/// [`Error::Export`] naming `path` when the mesh's file indices do not cover its positions once
-/// each (a body not read from a file in order).
-pub fn point_sources(path: &Path, mesh: &Mesh) -> Result<Vec<PointSource>> {
-    let n = mesh.particle_count();
-    let total = n + mesh.left_out.len();
-    let mut slots: Vec<Option<PointSource>> = vec![None; total];
-    let identity = mesh.file_index.len() != n;
-    let mut place = |index: usize, source: PointSource| -> Result<()> {
-        match slots.get_mut(index) {
-            Some(slot @ None) => {
-                *slot = Some(source);
-                Ok(())
-            }
-            _ => Err(Error::Export {
-                path: path.into(),
-                message: format!(
-                    "the body's positions do not map onto the input's {total} positions once \
-                     each (position {index})"
-                )
-                .into(),
-            }),
-        }
-    };
-    for p in 0..n {
-        let index = if identity {
-            p
-        } else {
-            mesh.file_index[p] as usize
-        };
-        place(index, PointSource::Particle(p as u32))?;
-    }
-    for &(index, position) in &mesh.left_out {
-        place(index as usize, PointSource::Fixed(position.as_vec3()))?;
-    }
-    Ok(slots.into_iter().map(|s| s.expect("filled")).collect())
-}
-
 /// Encodes `cache` (every frame of `mesh`'s particles, frame 0 the initial state) as a point
 /// cache for `path`, without writing it.
 ///
 /// # Errors
 /// [`Error::Export`] naming `path` when the cache does not fit the mesh or holds more points or
-/// frames than the format's 32-bit counts; as [`point_sources`].
+/// frames than the format's 32-bit counts.
 pub fn encode_point_cache(
     format: PointCacheFormat,
     path: &Path,
@@ -144,8 +92,7 @@ pub fn encode_point_cache(
             mesh.particle_count()
         )));
     }
-    let sources = point_sources(path, mesh)?;
-    let (points, frames) = (sources.len(), cache.frame_count());
+    let (points, frames) = (cache.particle_count(), cache.frame_count());
     let count = |what: &str, n: usize| {
         i32::try_from(n).map_err(|_| {
             export_error(format!(
@@ -184,15 +131,8 @@ pub fn encode_point_cache(
         }
     }
     for k in 0..frames {
-        let particles = cache.frame(k);
-        for source in &sources {
-            let p = match *source {
-                PointSource::Particle(i) => particles[i as usize],
-                PointSource::Fixed(p) => p,
-            };
-            for c in p.to_array() {
-                put(&mut bytes, c);
-            }
+        for c in cache.frame(k).iter().flat_map(|p| p.to_array()) {
+            put(&mut bytes, c);
         }
     }
     Ok(EncodedPointCache {
@@ -250,35 +190,4 @@ pub fn check_point_cache_path(param: Param, path: &Path) -> Result<()> {
         ));
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use glam::DVec3;
-
-    use super::*;
-
-    #[test]
-    fn left_out_positions_keep_their_file_slot() {
-        let mut mesh = Mesh::from_triangles(
-            "t".into(),
-            vec![DVec3::ZERO, DVec3::X, DVec3::Y],
-            vec![[0, 1, 2]],
-        );
-        // File positions 0, 2 and 3 simulated; position 1 used by no face.
-        mesh.file_index = vec![0, 2, 3];
-        mesh.left_out = vec![(1, DVec3::new(5.0, 6.0, 7.0))];
-        let s = point_sources(Path::new("c.pc2"), &mesh).unwrap();
-        assert_eq!(
-            s,
-            vec![
-                PointSource::Particle(0),
-                PointSource::Fixed(Vec3::new(5.0, 6.0, 7.0)),
-                PointSource::Particle(1),
-                PointSource::Particle(2),
-            ]
-        );
-        mesh.left_out = vec![(2, DVec3::ZERO)];
-        assert!(point_sources(Path::new("c.pc2"), &mesh).is_err());
-    }
 }

@@ -185,8 +185,6 @@ fn build_mesh(path: &Path, positions: &[DVec3], uvs: &[[f32; 2]], faces: &[Face]
             particle_of_position[i] = mesh.positions.len() as u32;
             mesh.positions.push(*p);
             mesh.file_index.push(i as u32);
-        } else {
-            mesh.left_out.push((i as u32, *p));
         }
     }
     let unused = positions.len() - mesh.positions.len();

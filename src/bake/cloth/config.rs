@@ -252,9 +252,9 @@ pub struct ClothJob {
     #[serde(alias = "vat-max-width")]
     pub vat_max_width: usize,
     /// Also write a PC2 point cache (little-endian, for Blender's Mesh Cache modifier): every
-    /// frame's positions from frame 0, one sample per frame, one point per position of the input
-    /// file in file order (an OBJ's `v` lines; positions the bake leaves out stay at rest), in the
-    /// bake's placed coordinates (as the glTF).
+    /// frame's positions from frame 0, one sample per frame, one point per simulated position in
+    /// the input's order (an OBJ's `v` lines that faces use, as Blender's OBJ import keeps them),
+    /// in the bake's placed coordinates (as the glTF).
     #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.pc2"))]
     pub pc2: Option<PathBuf>,
     /// Also write an MDD point cache (big-endian, LightWave's; Blender's Mesh Cache modifier reads

@@ -396,13 +396,13 @@ fn place(mesh: &mut Mesh, job: &ClothJob) -> Result<()> {
     if !translate.is_finite() {
         return Err(Error::param_value(Param::Translate, "must be finite"));
     }
-    // The positions the body leaves out are placed too: a point cache holds them at rest.
-    let left_out = mesh.left_out.iter_mut().map(|(_, p)| p);
-    for p in mesh.positions.iter_mut().chain(left_out) {
-        if job.up_z() {
+    if job.up_z() {
+        for p in &mut mesh.positions {
             *p = DVec3::new(p.x, p.z, -p.y);
         }
-        if scale != 1.0 || translate != DVec3::ZERO {
+    }
+    if scale != 1.0 || translate != DVec3::ZERO {
+        for p in &mut mesh.positions {
             *p = *p * scale + translate;
         }
     }

@@ -164,7 +164,7 @@ pub struct PointCacheReport {
     pub file: PathBuf,
     /// Its size.
     pub bytes: u64,
-    /// Points per frame: the input file's positions, in file order.
+    /// Points per frame: the simulated positions, in the input's order.
     pub points: usize,
     /// Frames, frame 0 (the initial state) included; one sample per frame.
     pub frames: usize,
