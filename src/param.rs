@@ -106,6 +106,10 @@ params! {
     VatMode => "vat_mode",
     /// Most pixels per vertex-animation texture row.
     VatMaxWidth => "vat_max_width",
+    /// A PC2 point cache.
+    Pc2 => "pc2",
+    /// An MDD point cache.
+    Mdd => "mdd",
     /// Keyframe reduction tolerance.
     KeyframeTolerance => "keyframe_tolerance",
     /// Sparse morph targets.
@@ -323,9 +327,9 @@ mod tests {
     #[test]
     fn keys_are_unique_snake_case() {
         let mut keys: Vec<&str> = Param::ALL.iter().map(|p| p.key()).collect();
-        assert!(keys
-            .iter()
-            .all(|k| k.chars().all(|c| c.is_ascii_lowercase() || c == '_')));
+        assert!(keys.iter().all(|k| k
+            .chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')));
         keys.sort_unstable();
         let n = keys.len();
         keys.dedup();

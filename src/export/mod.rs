@@ -10,6 +10,7 @@ pub mod gltf_doc;
 pub mod meshopt;
 pub mod morph;
 pub mod playback;
+pub mod pointcache;
 pub mod shading;
 pub mod skin;
 pub mod statics;

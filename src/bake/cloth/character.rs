@@ -6,8 +6,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::{
-    check_export_options, prepare_cloth, quality_report, report, CacheReport, CharacterReport,
-    ClothJob, ClothReport, Exported, PreparedCloth, Switch,
+    check_export_options, encode_point_caches, prepare_cloth, quality_report, report, CacheReport,
+    CharacterReport, ClothJob, ClothReport, Exported, PreparedCloth, Switch,
 };
 use crate::cloth::collide::Collider;
 use crate::cloth::drive::CharacterDrive;
@@ -197,7 +197,13 @@ pub fn bake_on_character(
         encode_character_gltf(&job.output, doc, &model.mesh, &frames, &options, &character)?
     };
     let gltf_bytes = morph.files.iter().map(|(_, b)| b.len() as u64).sum();
-    let written = Written::write_all(morph.files)?;
+    // The caches hold the written loops as the glTF's garment mesh does (metres; the glTF's
+    // garment node scales them by 1 / --rig-scale), keyed on the animation's times.
+    let (cache_files, point_caches) =
+        encode_point_caches(job, &model.mesh, &cache, fps, options.start_time)?;
+    let mut files = morph.files;
+    files.extend(cache_files);
+    let written = Written::write_all(files)?;
     let exported = Exported {
         written,
         cache: CacheReport {
@@ -207,6 +213,7 @@ pub fn bake_on_character(
             basis: None,
         },
         vat: None,
+        point_caches,
     };
     let seconds_export = export_start.elapsed().as_secs_f64();
     let quality = quality_report(&sim, first_written, job.strain_limit);

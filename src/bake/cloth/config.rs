@@ -257,6 +257,16 @@ pub struct ClothJob {
     #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_MAX_WIDTH, value_name = "PIXELS"))]
     #[serde(alias = "vat-max-width")]
     pub vat_max_width: usize,
+    /// Also write a PC2 point cache (little-endian, for Blender's Mesh Cache modifier): every
+    /// frame's positions from frame 0, one sample per frame, one point per simulated position in
+    /// the input's order (an OBJ's `v` lines that faces use, as Blender's OBJ import keeps them),
+    /// in the bake's placed coordinates (as the glTF).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.pc2"))]
+    pub pc2: Option<PathBuf>,
+    /// Also write an MDD point cache (big-endian, LightWave's; Blender's Mesh Cache modifier reads
+    /// it too): the same frames and points as --pc2, with each frame's time in seconds.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.mdd"))]
+    pub mdd: Option<PathBuf>,
     /// Keep only the frames needed for linear playback to reproduce every baked frame within T
     /// (scene units, largest vertex distance); first and last frames are always kept
     /// [default: off, one morph target per frame].
@@ -468,6 +478,8 @@ impl Default for ClothJob {
             vat: None,
             vat_mode: VatMode::Absolute,
             vat_max_width: DEFAULT_MAX_WIDTH,
+            pc2: None,
+            mdd: None,
             keyframe_tolerance: None,
             sparse: SparseMode::Auto,
             basis: None,

@@ -31,6 +31,9 @@ use crate::error::{Error, Result};
 use crate::export::basis::encode_basis_gltf;
 use crate::export::meshopt::compress_files;
 use crate::export::morph::{check_cache, encode_morph_gltf};
+use crate::export::pointcache::{
+    check_point_cache_path, encode_point_cache, PointCacheFormat, PointCacheOptions,
+};
 use crate::export::vat::{encode_vat, vat_paths};
 use crate::export::{BasisOptions, Compression, QuantizeMode};
 use crate::export::{MorphOptions, RenderFrames, VatOptions, Written};
@@ -480,7 +483,7 @@ fn prepare_wind(job: &ClothJob) -> Result<Option<Wind>> {
 }
 
 /// Checks the export options that need no mesh: `--keyframe-tolerance`, `--vat`,
-/// `--vat-max-width`.
+/// `--vat-max-width`, `--pc2` and `--mdd`.
 ///
 /// # Errors
 /// [`Error::InvalidOption`] naming the option.
@@ -526,6 +529,7 @@ pub fn check_export_options(job: &ClothJob) -> Result<()> {
     if let Some(path) = &job.vat {
         vat_paths(path)?;
     }
+    check_point_cache_options(job)?;
     if job.vat_max_width == 0 {
         return Err(Error::param_value(
             Param::VatMaxWidth,
@@ -533,6 +537,79 @@ pub fn check_export_options(job: &ClothJob) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// `--pc2` and `--mdd`: each a file that can be written, and no file of the job written twice
+/// (a cache on the output, its `.bin`, the report, the VAT's files or the other cache).
+fn check_point_cache_options(job: &ClothJob) -> Result<()> {
+    let caches = [(Param::Pc2, &job.pc2), (Param::Mdd, &job.mdd)];
+    if caches.iter().all(|(_, p)| p.is_none()) {
+        return Ok(());
+    }
+    let mut others: Vec<(Param, PathBuf)> = vec![(Param::Output, job.output.clone())];
+    if job
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf"))
+    {
+        let stem = job.output.file_stem().unwrap_or_default();
+        let bin = job
+            .output
+            .with_file_name(format!("{}.bin", stem.to_string_lossy()));
+        others.push((Param::Output, bin));
+    }
+    if let Some(r) = &job.report {
+        others.push((Param::Report, r.clone()));
+    }
+    if let Some(v) = &job.vat {
+        others.push((Param::Vat, v.clone()));
+        if let Ok((normals, json)) = vat_paths(v) {
+            others.extend([(Param::Vat, normals), (Param::Vat, json)]);
+        }
+    }
+    for (param, path) in caches {
+        let Some(path) = path else { continue };
+        check_point_cache_path(param, path)?;
+        let key = same_file_key(path);
+        if let Some((other, other_path)) = others.iter().find(|(_, o)| same_file_key(o) == key) {
+            return Err(Error::param_value(
+                param,
+                text!(
+                    format!("{}: the same file as ", path.display()),
+                    *other,
+                    format!(
+                        " ({}) writes: give the cache a file of its own",
+                        other_path.display()
+                    )
+                ),
+            ));
+        }
+        others.push((param, path.clone()));
+    }
+    Ok(())
+}
+
+/// A path made absolute and lexically normal, to tell whether two options name one file.
+fn same_file_key(path: &Path) -> PathBuf {
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut out = PathBuf::new();
+    for c in absolute.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    // A folder reached through a symbolic link is the same folder.
+    match (out.parent(), out.file_name()) {
+        (Some(dir), Some(name)) => match dir.canonicalize() {
+            Ok(dir) => dir.join(name),
+            Err(_) => out,
+        },
+        _ => out,
+    }
 }
 
 /// Loads a body file by extension: `.obj`, `.gltf`/`.glb`, `.tet`.
@@ -785,6 +862,41 @@ struct Exported {
     written: Written,
     cache: CacheReport,
     vat: Option<VatReport>,
+    point_caches: Vec<PointCacheReport>,
+}
+
+/// Files to write, as (path, bytes).
+type Files = Vec<(PathBuf, Vec<u8>)>;
+
+/// Encodes the point caches `--pc2` and `--mdd` ask for: `cache`'s frames (frame 0 the initial
+/// state, as the glTF's) of `mesh`, frame k at `start_time + k / fps` seconds.
+fn encode_point_caches(
+    job: &ClothJob,
+    mesh: &Mesh,
+    cache: &crate::cloth::FrameCache,
+    fps: f64,
+    start_time: f64,
+) -> Result<(Files, Vec<PointCacheReport>)> {
+    let options = PointCacheOptions { fps, start_time };
+    let mut files = Vec::new();
+    let mut reports = Vec::new();
+    for (format, path) in [
+        (PointCacheFormat::Pc2, &job.pc2),
+        (PointCacheFormat::Mdd, &job.mdd),
+    ] {
+        let Some(path) = path else { continue };
+        let encoded = encode_point_cache(format, path, mesh, cache, &options)?;
+        reports.push(PointCacheReport {
+            format,
+            file: encoded.path.clone(),
+            bytes: encoded.bytes.len() as u64,
+            points: encoded.points,
+            frames: encoded.frames,
+            fps,
+        });
+        files.push((encoded.path, encoded.bytes));
+    }
+    Ok((files, reports))
 }
 
 /// Encodes the morph glTF and, when asked, the VAT, then writes them all as one atomic set.
@@ -859,6 +971,9 @@ fn export(
         }
         None => None,
     };
+    let (cache_files, point_caches) =
+        encode_point_caches(job, &model.mesh, cache, options.fps, options.start_time)?;
+    files.extend(cache_files);
     let written = Written::write_all(files)?;
     Ok(Exported {
         written,
@@ -869,6 +984,7 @@ fn export(
             basis,
         },
         vat,
+        point_caches,
     })
 }
 
@@ -906,6 +1022,7 @@ fn report(
         written,
         cache,
         vat,
+        point_caches,
     } = exported;
     let PreparedCloth { model, params, .. } = prepared;
     let total_iterations: usize = frames.iter().map(|f| f.iterations).sum();
@@ -956,6 +1073,7 @@ fn report(
         output_bytes: written.bytes,
         cache,
         vat,
+        point_caches,
         environment: environment_report(params, frames),
         character: None,
         warnings: {

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use crate::cloth::collide::ContactModel;
 use crate::cloth::material::{Material, MaterialPreset};
 use crate::cloth::SolverKind;
+use crate::export::pointcache::PointCacheFormat;
 use crate::export::vat::VatManifest;
 use crate::export::{BasisStats, CacheStats};
 use crate::param::Text;
@@ -73,12 +74,14 @@ pub struct ClothReport {
     pub seconds_export: f64,
     /// The output file(s).
     pub output: Vec<PathBuf>,
-    /// Bytes written (every output file, VAT included).
+    /// Bytes written (every output file, VAT and point caches included).
     pub output_bytes: u64,
     /// The morph cache: targets, kept frames, sparse accessors, sizes.
     pub cache: CacheReport,
     /// The vertex-animation texture, when `--vat` was given.
     pub vat: Option<VatReport>,
+    /// The point caches `--pc2` and `--mdd` wrote (none without them).
+    pub point_caches: Vec<PointCacheReport>,
     /// Colliders, contacts and wind, when any.
     pub environment: Option<EnvironmentReport>,
     /// The character that drove the bake, with `--rig`.
@@ -177,6 +180,23 @@ pub struct VatReport {
     pub bytes: u64,
     /// What the JSON says (layout, bounds, mode).
     pub manifest: VatManifest,
+}
+
+/// A point cache as written (`--pc2`, `--mdd`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PointCacheReport {
+    /// `pc2` or `mdd`.
+    pub format: PointCacheFormat,
+    /// The file.
+    pub file: PathBuf,
+    /// Its size.
+    pub bytes: u64,
+    /// Points per frame: the simulated positions, in the input's order.
+    pub points: usize,
+    /// Frames, frame 0 (the initial state) included; one sample per frame.
+    pub frames: usize,
+    /// Frames per second.
+    pub fps: f64,
 }
 
 /// The environment of a bake, as used.
