@@ -6,6 +6,7 @@
 pub mod character;
 pub mod config;
 pub mod report;
+pub mod sequence;
 
 pub use config::{defaults, ClothJob, ClothPreset, ClothSource, Switch, UpAxis};
 pub use report::*;
@@ -30,7 +31,7 @@ use crate::cloth::{
 use crate::error::{Error, Result};
 use crate::export::basis::encode_basis_gltf;
 use crate::export::meshopt::compress_files;
-use crate::export::morph::{check_cache, encode_morph_gltf};
+use crate::export::morph::{check_cache, encode_morph_gltf_with_body, AnimatedBody};
 use crate::export::vat::{encode_vat, vat_paths};
 use crate::export::{BasisOptions, Compression, QuantizeMode};
 use crate::export::{MorphOptions, RenderFrames, VatOptions, Written};
@@ -655,6 +656,9 @@ pub fn simulate_cloth(
 /// As [`prepare_cloth`]; [`Error::Diverged`] when the simulation blows up (nothing is written);
 /// write errors.
 pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Result<ClothReport> {
+    if job.body.is_some() {
+        return sequence::bake_on_sequence(job, progress);
+    }
     if job.rig.is_some() {
         return character::bake_on_character(job, progress);
     }
@@ -676,7 +680,7 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
         static_meshes: collider_meshes(model, &params.colliders),
         start_time: 0.0,
     };
-    let exported = export(job, model, &sim.cache, options)?;
+    let exported = export(job, model, &sim.cache, options, None)?;
     let seconds_export = export_start.elapsed().as_secs_f64();
     Ok(report(
         &prepared,
@@ -714,10 +718,21 @@ fn export(
     model: &ClothModel,
     cache: &crate::cloth::FrameCache,
     options: MorphOptions,
+    body: Option<AnimatedBody<'_>>,
 ) -> Result<Exported> {
     check_cache(&job.output, &model.mesh, cache)?;
     let frames = RenderFrames::new(&model.mesh, cache);
     let (morph, basis) = match job.basis {
+        Some(_) if body.is_some() => {
+            return Err(Error::param_value(
+                Param::Basis,
+                text!(
+                    "not with ",
+                    Param::Body,
+                    ": a bake on a body sequence writes a morph target per frame"
+                ),
+            ))
+        }
         Some(size) => {
             let basis = BasisOptions {
                 size,
@@ -732,7 +747,8 @@ fn export(
             (e.morph, Some(e.basis))
         }
         None => {
-            let morph = encode_morph_gltf(&job.output, &model.mesh, &frames, &options)?;
+            let morph =
+                encode_morph_gltf_with_body(&job.output, &model.mesh, &frames, &options, body)?;
             if let Some(n) = job.max_targets.filter(|&n| morph.stats.targets > n) {
                 return Err(Error::param_value(
                     Param::MaxTargets,
@@ -878,6 +894,7 @@ fn report(
         vat,
         environment: environment_report(params, frames),
         character: None,
+        body: None,
         warnings: {
             let mut w = model.warnings.clone();
             w.extend(convergence_warning(frames, params.tolerance));
