@@ -73,7 +73,13 @@ fn write_sheet(dir: &Path) -> PathBuf {
     for j in 0..n - 1 {
         for i in 0..n - 1 {
             let a = j * n + i + 1;
-            s += &format!("f {a} {} {}\nf {a} {} {}\n", a + n, a + n + 1, a + n + 1, a + 1);
+            s += &format!(
+                "f {a} {} {}\nf {a} {} {}\n",
+                a + n,
+                a + n + 1,
+                a + n + 1,
+                a + 1
+            );
         }
     }
     let path = dir.join("sheet.obj");
@@ -161,8 +167,15 @@ fn a_rising_box_lifts_the_sheet_and_the_file_plays_the_box() {
     // The bake lasts the sequence: 10 body frames at 10 fps = 1 s = 50 frames at 50 fps.
     assert_eq!(report.frames, 50);
     let body = report.body.as_ref().unwrap();
-    assert_eq!((body.frames, body.vertices, body.triangles), (FRAMES, 8, 12));
-    assert!(report.unconverged_frames.is_empty(), "{:?}", report.residuals);
+    assert_eq!(
+        (body.frames, body.vertices, body.triangles),
+        (FRAMES, 8, 12)
+    );
+    assert!(
+        report.unconverged_frames.is_empty(),
+        "{:?}",
+        report.residuals
+    );
 
     let (doc, buffers, _) = gltf::import(&out).unwrap();
     let sheet = Played::read(&doc, &buffers, "sheet");
@@ -227,7 +240,16 @@ fn frames_shorten_the_bake_and_cannot_lengthen_it() {
     let mut j = job(dir.path(), pattern, &out);
     j.frames = Some(51);
     let e = bake_cloth(&j, &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e, Error::Param { param: Param::Frames, .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            Error::Param {
+                param: Param::Frames,
+                ..
+            }
+        ),
+        "{e}"
+    );
     assert!(!out.exists());
     j.frames = Some(5);
     let report = bake_cloth(&j, &mut |_, _| {}).unwrap();
@@ -296,7 +318,16 @@ fn the_body_rate_is_required_and_the_numbering_may_be_padded() {
     let mut j = job(dir.path(), dir.path().join("pad_%04d.obj"), &out);
     j.body_fps = None;
     let e = bake_cloth(&j, &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e, Error::Param { param: Param::BodyFps, .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            Error::Param {
+                param: Param::BodyFps,
+                ..
+            }
+        ),
+        "{e}"
+    );
     j.body_fps = Some(BODY_FPS);
     let report = bake_cloth(&j, &mut |_, _| {}).unwrap();
     let body = report.body.unwrap();

@@ -47,7 +47,9 @@ impl FramePattern {
             .ok_or_else(|| bad("has no file name"))?;
         let dir = pattern.parent().map(Path::to_path_buf).unwrap_or_default();
         if dir.to_string_lossy().contains('%') {
-            return Err(bad("the frame number goes in the file name, not a directory"));
+            return Err(bad(
+                "the frame number goes in the file name, not a directory",
+            ));
         }
         let mut prefix = String::new();
         let mut suffix = String::new();
@@ -83,7 +85,8 @@ impl FramePattern {
             let width = if spec.is_empty() {
                 0
             } else {
-                spec.parse().map_err(|_| bad("the frame number's width is too large"))?
+                spec.parse()
+                    .map_err(|_| bad("the frame number's width is too large"))?
             };
             if width > 20 {
                 return Err(bad("the frame number's width is too large"));
@@ -286,7 +289,16 @@ mod tests {
         assert_eq!(p.path(7), Path::new("100%_  7.obj"));
         for bad in ["shell.obj", "s%d_%d.obj", "s%s.obj", "k%d/s%d.obj"] {
             let e = FramePattern::parse(Path::new(bad)).unwrap_err();
-            assert!(matches!(e, Error::Param { param: Param::Body, .. }), "{bad}: {e}");
+            assert!(
+                matches!(
+                    e,
+                    Error::Param {
+                        param: Param::Body,
+                        ..
+                    }
+                ),
+                "{bad}: {e}"
+            );
         }
     }
 
@@ -297,7 +309,10 @@ mod tests {
             std::fs::write(dir.path().join(name), "").unwrap();
         }
         let p = FramePattern::parse(&dir.path().join("s%d.obj")).unwrap();
-        assert_eq!(p.existing().unwrap().into_iter().collect::<Vec<_>>(), [0, 1, 4]);
+        assert_eq!(
+            p.existing().unwrap().into_iter().collect::<Vec<_>>(),
+            [0, 1, 4]
+        );
         let p = FramePattern::parse(&dir.path().join("s%02d.obj")).unwrap();
         assert_eq!(p.existing().unwrap().into_iter().collect::<Vec<_>>(), [1]);
     }
