@@ -340,3 +340,23 @@ fn the_body_rate_is_required_and_the_numbering_may_be_padded() {
     assert_eq!(report.body.unwrap().frames, 2);
     assert_eq!(report.frames, 5);
 }
+
+#[test]
+fn body_options_without_a_body_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("none.glb");
+    let mut j = job(dir.path(), PathBuf::new(), &out);
+    j.body = None;
+    let e = bake_cloth(&j, &mut |_, _| {}).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Param {
+                param: Param::BodyFps,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(!out.exists());
+}

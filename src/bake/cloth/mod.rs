@@ -659,6 +659,18 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
     if job.body.is_some() {
         return sequence::bake_on_sequence(job, progress);
     }
+    if let Some(param) = [
+        (Param::BodyFps, job.body_fps.is_some()),
+        (Param::BodyStart, job.body_start.is_some()),
+    ]
+    .into_iter()
+    .find_map(|(p, given)| given.then_some(p))
+    {
+        return Err(Error::param_value(
+            param,
+            text!("applies to a body sequence: give ", Param::Body, " too"),
+        ));
+    }
     if job.rig.is_some() {
         return character::bake_on_character(job, progress);
     }
