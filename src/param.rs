@@ -162,6 +162,12 @@ params! {
     BodyCollider => "body_collider",
     /// Body meshes the garment ignores.
     BodyExclude => "body_exclude",
+    /// A body given as a mesh sequence (a file pattern with a frame number).
+    Body => "body",
+    /// Frames per second of a body sequence.
+    BodyFps => "body_fps",
+    /// The first frame number of a body sequence.
+    BodyStart => "body_start",
     /// Write the garment alone.
     GarmentOnly => "garment_only",
     /// Metres per unit of the rig.

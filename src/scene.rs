@@ -3,7 +3,7 @@
 //! A scene lists `[[cloth]]` and `[[ik]]` tables; each deserialises straight into a
 //! [`ClothJob`] or an [`IkJob`], its keys the config's fields (the parameters' [`Param::key`]s:
 //! `frames = 120`, `pin = ["box:..."]`, `gravity = "0,-9.81,0"` or `[0, -9.81, 0]`). Relative
-//! paths (inputs, outputs, reports, rigs, drawings, font files, mesh colliders) are relative to
+//! paths (inputs, outputs, reports, rigs, body sequences, drawings, font files, mesh colliders) are relative to
 //! the scene file. Jobs are independent: [`Scene::jobs`] may run in any order or in parallel.
 //!
 //! ```no_run
@@ -353,6 +353,7 @@ fn resolve_cloth(job: &mut ClothJob, dir: &Path) {
     let at = |p: &Path| lexically_normal(&dir.join(p));
     job.input = job.input.as_deref().map(at);
     job.rig = job.rig.as_deref().map(at);
+    job.body = job.body.as_deref().map(at);
     job.output = at(&job.output);
     job.report = job.report.as_deref().map(at);
     job.vat = job.vat.as_deref().map(at);

@@ -1,5 +1,9 @@
-//! Cloth driven by an animated character: pins that ride the character's skinned surface (or
-//! one joint), and its skinned body as a moving collider.
+//! Cloth driven by a moving body: pins that ride a character's skinned surface (or one joint),
+//! and a body that moves as a collider. [`Drive`] is what a bake needs from either source of
+//! body positions: a skinned character ([`CharacterDrive`]) or a mesh sequence
+//! ([`SequenceDrive`]).
+//!
+//! A character:
 //!
 //! Frames: the character's document frame scaled by [`CharacterDrive::scale`] (metres per
 //! document unit) is the cloth's frame; the garment is given in the character's rest pose (every
@@ -24,9 +28,65 @@ use glam::{DAffine3, DVec3};
 
 use super::collide::{Collider, MeshCollider};
 use crate::data::animation::{Clip, Skeleton, SkinnedMesh, Trs};
+use crate::data::MeshSequence;
 use crate::error::{Error, Result};
 use crate::param::Param;
 use crate::text;
+
+/// A source of body positions (and pin positions) over simulation time.
+pub trait Drive: std::fmt::Debug {
+    /// The particles the drive moves, in [`DrivenPose::pins`] order.
+    fn pins(&self) -> &[Binding];
+
+    /// The body where the simulation starts, metres in the cloth's frame, as a collider; `None`
+    /// without a body.
+    ///
+    /// # Errors
+    /// As [`MeshCollider::new`].
+    fn rest_body(&self) -> Result<Option<MeshCollider>>;
+
+    /// The pins and the body at simulation time `tau` (seconds), metres in the cloth's frame.
+    fn pose(&self, tau: f64) -> DrivenPose;
+}
+
+/// A body given as a mesh sequence, moving as a collider: at time τ its vertices are linearly
+/// interpolated between the two frames around τ (held at the last frame after it). It carries no
+/// pins: pinned particles stay where they are.
+#[derive(Debug, Clone)]
+pub struct SequenceDrive {
+    sequence: MeshSequence,
+}
+
+impl SequenceDrive {
+    /// A drive playing `sequence` from its first frame at simulation time 0.
+    pub fn new(sequence: MeshSequence) -> Self {
+        SequenceDrive { sequence }
+    }
+
+    /// The sequence.
+    pub fn sequence(&self) -> &MeshSequence {
+        &self.sequence
+    }
+}
+
+impl Drive for SequenceDrive {
+    fn pins(&self) -> &[Binding] {
+        &[]
+    }
+
+    fn rest_body(&self) -> Result<Option<MeshCollider>> {
+        let s = &self.sequence;
+        MeshCollider::from_mesh(&s.files[0], s.frames[0].clone(), s.mesh.triangles.clone())
+            .map(Some)
+    }
+
+    fn pose(&self, tau: f64) -> DrivenPose {
+        DrivenPose {
+            pins: Vec::new(),
+            body: self.sequence.at(tau),
+        }
+    }
+}
 
 /// How a pinned particle follows the character.
 #[derive(Debug, Clone, PartialEq)]
@@ -282,5 +342,19 @@ impl CharacterDrive {
     /// As [`MeshCollider::new`] (a pose with non-finite positions).
     pub fn moving_body(before: &Arc<MeshCollider>, after: Vec<DVec3>) -> Result<Collider> {
         Collider::moving(Arc::clone(before), after)
+    }
+}
+
+impl Drive for CharacterDrive {
+    fn pins(&self) -> &[Binding] {
+        &self.pins
+    }
+
+    fn rest_body(&self) -> Result<Option<MeshCollider>> {
+        CharacterDrive::rest_body(self)
+    }
+
+    fn pose(&self, tau: f64) -> DrivenPose {
+        CharacterDrive::pose(self, tau)
     }
 }

@@ -192,17 +192,17 @@ pub fn simulate(
     simulate_driven(model, solver, params, None, progress)
 }
 
-/// A character driving a bake: its pins and, when `body_shape` is `Some(j)`, its body as
-/// collider `j` of the solver's colliders.
+/// A moving body driving a bake (a character or a mesh sequence): its pins and, when
+/// `body_shape` is `Some(j)`, its body as collider `j` of the solver's colliders.
 #[derive(Debug, Clone, Copy)]
 pub struct Driven<'a> {
-    /// The character.
-    pub drive: &'a drive::CharacterDrive,
+    /// The source of pin and body positions.
+    pub drive: &'a dyn drive::Drive,
     /// Which collider is the body, if it collides.
     pub body_shape: Option<usize>,
 }
 
-/// As [`simulate`], with the pins and the body collider moved by a character before every
+/// As [`simulate`], with the pins and the body collider moved by a [`drive::Drive`] before every
 /// step (to where they are at the end of the step).
 ///
 /// # Errors
@@ -251,7 +251,7 @@ pub fn simulate_driven(
             if let Some(d) = driven {
                 let end = ((frame - 1) * params.substeps + substep + 1) as f64 * h;
                 let pose = d.drive.pose(end);
-                for (b, p) in d.drive.pins.iter().zip(&pose.pins) {
+                for (b, p) in d.drive.pins().iter().zip(&pose.pins) {
                     all[b.particle as usize] = *p;
                 }
                 let mut shapes = Vec::new();

@@ -5,8 +5,10 @@
 pub mod animation;
 pub mod chain;
 pub mod frames;
+pub mod sequence;
 pub mod statics;
 
 pub use chain::{Chain, Joint, Pose};
 pub use frames::FrameCache;
+pub use sequence::MeshSequence;
 pub use statics::StaticMesh;

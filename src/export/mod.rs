@@ -21,6 +21,6 @@ pub use compact::SparseMode;
 pub use frames::RenderFrames;
 pub use gltf_doc::{GltfBuilder, Written};
 pub use meshopt::Compression;
-pub use morph::{write_morph_gltf, CacheStats, Interpolation, MorphOptions};
+pub use morph::{write_morph_gltf, AnimatedBody, CacheStats, Interpolation, MorphOptions};
 pub use statics::StaticMesh;
 pub use vat::{VatMode, VatOptions};

@@ -158,6 +158,36 @@ pub fn encode_morph_gltf(
     frames: &RenderFrames,
     options: &MorphOptions,
 ) -> Result<EncodedMorph> {
+    encode_morph_gltf_with_body(path, mesh, frames, options, None)
+}
+
+/// A body moving beside the cloth (a mesh sequence), written as its own morph-animated mesh:
+/// `frames` of `mesh`, frame k at the cloth's frame k's time.
+#[derive(Debug, Clone, Copy)]
+pub struct AnimatedBody<'a> {
+    /// Name of its mesh and node.
+    pub name: &'a str,
+    /// Its surface (positions of frame 0, triangles, texture coordinates).
+    pub mesh: &'a Mesh,
+    /// Its render frames, as many as the cloth's.
+    pub frames: &'a RenderFrames,
+}
+
+/// As [`encode_morph_gltf`], with `body` (when given) written as a second morph-animated mesh
+/// whose weights are keyed on the cloth's frames in the same animation, so that a viewer playing
+/// the animation plays both in step. The body gets every frame (no keyframe reduction), a grey
+/// material, and its node after the cloth's and the static meshes.
+///
+/// # Errors
+/// As [`encode_morph_gltf`]; [`Error::Export`] when the body's frame count differs from the
+/// cloth's.
+pub fn encode_morph_gltf_with_body(
+    path: &Path,
+    mesh: &Mesh,
+    frames: &RenderFrames,
+    options: &MorphOptions,
+    body: Option<AnimatedBody<'_>>,
+) -> Result<EncodedMorph> {
     if frames.frame_count() < 2 || frames.vertex_count() != mesh.render_vertices.len() {
         return Err(Error::Export {
             path: path.into(),
@@ -192,7 +222,79 @@ pub fn encode_morph_gltf(
     let mut b = GltfBuilder::new();
     let (node, stats) = push_morph(&mut b, path, mesh, frames, options)?;
     push_scene(&mut b, node, &options.static_meshes);
+    if let Some(body) = body {
+        push_body(&mut b, path, body, frames.frame_count(), options)?;
+    }
     stamp_and_encode(b, path, frames, options, stats)
+}
+
+/// Adds `body` (see [`encode_morph_gltf_with_body`]) to `b`, whose last animation is the
+/// cloth's and whose scene exists.
+fn push_body(
+    b: &mut GltfBuilder,
+    path: &Path,
+    body: AnimatedBody<'_>,
+    frames: usize,
+    options: &MorphOptions,
+) -> Result<()> {
+    if body.frames.frame_count() != frames
+        || body.frames.vertex_count() != body.mesh.render_vertices.len()
+    {
+        return Err(Error::Export {
+            path: path.into(),
+            message: format!(
+                "the body `{}` has {} frames of {} vertices, where the cloth has {frames} frames \
+                 and the body's mesh {} render vertices",
+                body.name,
+                body.frames.frame_count(),
+                body.frames.vertex_count(),
+                body.mesh.render_vertices.len()
+            )
+            .into(),
+        });
+    }
+    let body_options = MorphOptions {
+        name: body.name.to_owned(),
+        keyframe_tolerance: None,
+        static_meshes: Vec::new(),
+        ..options.clone()
+    };
+    let (node, _) = push_morph(b, path, body.mesh, body.frames, &body_options)?;
+    let weights = b
+        .root
+        .animations
+        .pop()
+        .expect("push_morph adds the weights animation last");
+    let animation = b
+        .root
+        .animations
+        .last_mut()
+        .expect("the cloth's animation comes before");
+    let offset = animation.samplers.len() as u32;
+    for mut ch in weights.channels {
+        ch.sampler = json::Index::new(ch.sampler.value() as u32 + offset);
+        animation.channels.push(ch);
+    }
+    animation.samplers.extend(weights.samplers);
+    // push_morph gave the body a cloth material of its own: make it the body's.
+    let gmesh = b.root.nodes[node.value()]
+        .mesh
+        .expect("push_morph's node has a mesh");
+    if let Some(material) = b.root.meshes[gmesh.value()].primitives[0].material {
+        b.root.materials[material.value()] = json::Material {
+            name: Some("body".into()),
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                base_color_factor: json::material::PbrBaseColorFactor([0.6, 0.6, 0.6, 1.0]),
+                metallic_factor: json::material::StrengthFactor(0.0),
+                roughness_factor: json::material::StrengthFactor(0.9),
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+    }
+    let scene = b.root.scene.map_or(0, |s| s.value());
+    b.root.scenes[scene].nodes.push(node);
+    Ok(())
 }
 
 /// Records the bake's fps and frame range in `b` (see [`super::playback`]) and encodes it for

@@ -6,5 +6,6 @@ pub mod gltf_import;
 pub mod gltf_mesh;
 pub mod obj;
 pub mod rig;
+pub mod sequence;
 pub mod skin_weights;
 pub mod tet;

@@ -436,6 +436,40 @@ pub struct ClothJob {
         )
     )]
     pub rig_scale: f64,
+    /// A moving body as an OBJ sequence: a file pattern with a printf-style frame number
+    /// (`kick/shell%d.obj`, `frame_%04d.obj`), frames numbered from the first file that exists
+    /// up to the last, every one with the first's vertices and faces. The body collides as it
+    /// moves (linearly between its frames), the bake lasts as long as the sequence (--frames
+    /// can shorten it), and the output holds the body with its animation. The sequence is used
+    /// as it is: --translate, --scale and --up place the garment only (Newton solver only).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_name = "PATTERN", help_heading = "Body sequence")
+    )]
+    pub body: Option<PathBuf>,
+    /// Frames per second of the --body sequence (required with it); the bake's --fps defaults
+    /// to it.
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long,
+            value_name = "F",
+            requires = "body",
+            help_heading = "Body sequence"
+        )
+    )]
+    pub body_fps: Option<f64>,
+    /// The --body sequence's first frame number [default: the lowest of the files that exist].
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long,
+            value_name = "N",
+            requires = "body",
+            help_heading = "Body sequence"
+        )
+    )]
+    pub body_start: Option<u64>,
 }
 
 impl Default for ClothJob {
@@ -509,6 +543,9 @@ impl Default for ClothJob {
             body_exclude: Vec::new(),
             garment_only: false,
             rig_scale: 1.0,
+            body: None,
+            body_fps: None,
+            body_start: None,
         }
     }
 }

@@ -6,6 +6,7 @@
 pub mod character;
 pub mod config;
 pub mod report;
+pub mod sequence;
 
 pub use config::{defaults, ClothJob, ClothPreset, ClothSource, Switch, UpAxis};
 pub use report::*;
@@ -30,7 +31,7 @@ use crate::cloth::{
 use crate::error::{Error, Result};
 use crate::export::basis::encode_basis_gltf;
 use crate::export::meshopt::compress_files;
-use crate::export::morph::{check_cache, encode_morph_gltf};
+use crate::export::morph::{check_cache, encode_morph_gltf_with_body, AnimatedBody};
 use crate::export::pointcache::{
     check_point_cache_path, encode_point_cache, PointCacheFormat, PointCacheOptions,
 };
@@ -734,6 +735,21 @@ pub fn simulate_cloth(
 /// As [`prepare_cloth`]; [`Error::Diverged`] when the simulation blows up (nothing is written);
 /// write errors.
 pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Result<ClothReport> {
+    if job.body.is_some() {
+        return sequence::bake_on_sequence(job, progress);
+    }
+    if let Some(param) = [
+        (Param::BodyFps, job.body_fps.is_some()),
+        (Param::BodyStart, job.body_start.is_some()),
+    ]
+    .into_iter()
+    .find_map(|(p, given)| given.then_some(p))
+    {
+        return Err(Error::param_value(
+            param,
+            text!("applies to a body sequence: give ", Param::Body, " too"),
+        ));
+    }
     if job.rig.is_some() {
         return character::bake_on_character(job, progress);
     }
@@ -755,7 +771,7 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
         static_meshes: collider_meshes(model, &params.colliders),
         start_time: 0.0,
     };
-    let exported = export(job, model, &sim.cache, options)?;
+    let exported = export(job, model, &sim.cache, options, None)?;
     let seconds_export = export_start.elapsed().as_secs_f64();
     let quality = quality_report(&sim, 0, job.strain_limit);
     Ok(report(
@@ -905,10 +921,21 @@ fn export(
     model: &ClothModel,
     cache: &crate::cloth::FrameCache,
     options: MorphOptions,
+    body: Option<AnimatedBody<'_>>,
 ) -> Result<Exported> {
     check_cache(&job.output, &model.mesh, cache)?;
     let frames = RenderFrames::new(&model.mesh, cache);
     let (morph, basis) = match job.basis {
+        Some(_) if body.is_some() => {
+            return Err(Error::param_value(
+                Param::Basis,
+                text!(
+                    "not with ",
+                    Param::Body,
+                    ": a bake on a body sequence writes a morph target per frame"
+                ),
+            ))
+        }
         Some(size) => {
             let basis = BasisOptions {
                 size,
@@ -923,7 +950,8 @@ fn export(
             (e.morph, Some(e.basis))
         }
         None => {
-            let morph = encode_morph_gltf(&job.output, &model.mesh, &frames, &options)?;
+            let morph =
+                encode_morph_gltf_with_body(&job.output, &model.mesh, &frames, &options, body)?;
             if let Some(n) = job.max_targets.filter(|&n| morph.stats.targets > n) {
                 return Err(Error::param_value(
                     Param::MaxTargets,
@@ -1076,6 +1104,7 @@ fn report(
         point_caches,
         environment: environment_report(params, frames),
         character: None,
+        body: None,
         warnings: {
             let mut w = model.warnings.clone();
             w.extend(convergence_warning(frames, params.tolerance));

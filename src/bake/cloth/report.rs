@@ -86,6 +86,8 @@ pub struct ClothReport {
     pub environment: Option<EnvironmentReport>,
     /// The character that drove the bake, with `--rig`.
     pub character: Option<CharacterReport>,
+    /// The mesh sequence that moved as a body, with `--body`.
+    pub body: Option<BodyReport>,
     /// Non-fatal quirks of the input.
     pub warnings: Vec<Text>,
 }
@@ -144,6 +146,31 @@ pub struct CharacterReport {
     /// Largest distance between a particle's position in the first and the last written frame
     /// (the loop's seam), metres.
     pub loop_seam: f64,
+}
+
+/// A bake on a body given as a mesh sequence (`--body`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct BodyReport {
+    /// The file pattern.
+    pub pattern: PathBuf,
+    /// The first file read.
+    pub first_file: PathBuf,
+    /// The last file read.
+    pub last_file: PathBuf,
+    /// Frames in the sequence (every one was read and checked).
+    pub frames: usize,
+    /// The sequence's frames per second.
+    pub fps: f64,
+    /// Its duration, seconds (the bake's length unless `--frames` shortens it).
+    pub duration_seconds: f64,
+    /// Vertices of the body.
+    pub vertices: usize,
+    /// Triangles of the body.
+    pub triangles: usize,
+    /// Whether it collides with the cloth (`--body-collider`).
+    pub collides: bool,
+    /// The name of its mesh and node in the output.
+    pub node: String,
 }
 
 /// The fabric of a material-model bake.

@@ -1,0 +1,362 @@
+//! Cloth on a body given as an OBJ sequence (`cloth --body PATTERN --body-fps F`): a box whose
+//! top rises under a sheet pushes the sheet up, the written glTF holds the body's motion (read
+//! back with the `gltf` crate), and bad sequences fail before anything is simulated.
+
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use scenebake::bake::{bake_cloth, ClothJob};
+use scenebake::error::Error;
+use scenebake::param::Param;
+
+/// The box: x, z in [-0.5, 0.5], bottom at y = -0.5; its top starts at y = 0.
+const HALF: f64 = 0.5;
+const BOTTOM: f64 = -0.5;
+/// The top's rise over the first RISE_FRAMES frames (then held), at BODY_FPS.
+const RISE: f64 = 0.2;
+const RISE_FRAMES: usize = 4;
+const FRAMES: usize = 11;
+const BODY_FPS: f64 = 10.0;
+/// The sheet's distance from the top: the contact thickness.
+const THICKNESS: f64 = 0.01;
+
+/// The top's height at `t` seconds: rising linearly for RISE_FRAMES frames, then held.
+fn top_at(t: f64) -> f64 {
+    let rise_time = RISE_FRAMES as f64 / BODY_FPS;
+    RISE * (t / rise_time).clamp(0.0, 1.0)
+}
+
+/// The box with its top at `top`: 8 corners, 12 outward triangles.
+fn box_obj(top: f64, extra_vertex: bool) -> String {
+    let mut s = String::new();
+    for (x, y, z) in [
+        (-HALF, BOTTOM, -HALF),
+        (HALF, BOTTOM, -HALF),
+        (HALF, BOTTOM, HALF),
+        (-HALF, BOTTOM, HALF),
+        (-HALF, top, -HALF),
+        (HALF, top, -HALF),
+        (HALF, top, HALF),
+        (-HALF, top, HALF),
+    ] {
+        s += &format!("v {x} {y} {z}\n");
+    }
+    s += "f 1 2 3\nf 1 3 4\nf 5 7 6\nf 5 8 7\nf 1 5 6\nf 1 6 2\nf 2 6 7\nf 2 7 3\nf 3 7 8\nf 3 8 4\nf 4 8 5\nf 4 5 1\n";
+    if extra_vertex {
+        s += &format!("v 0 {} 0\nf 5 6 9\n", top + 0.1);
+    }
+    s
+}
+
+/// Writes frames `0..FRAMES` of the rising box as `dir/box%d.obj`; returns the pattern.
+fn write_sequence(dir: &Path) -> PathBuf {
+    for i in 0..FRAMES {
+        let top = top_at(i as f64 / BODY_FPS);
+        std::fs::write(dir.join(format!("box{i}.obj")), box_obj(top, false)).unwrap();
+    }
+    dir.join("box%d.obj")
+}
+
+/// A 0.4 m square sheet, 9 × 9 vertices, lying a thickness above the box's starting top.
+fn write_sheet(dir: &Path) -> PathBuf {
+    let n = 9;
+    let mut s = String::new();
+    for j in 0..n {
+        for i in 0..n {
+            let (x, z) = (
+                -0.2 + 0.4 * i as f64 / (n - 1) as f64,
+                -0.2 + 0.4 * j as f64 / (n - 1) as f64,
+            );
+            s += &format!("v {x} {THICKNESS} {z}\n");
+        }
+    }
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            let a = j * n + i + 1;
+            s += &format!(
+                "f {a} {} {}\nf {a} {} {}\n",
+                a + n,
+                a + n + 1,
+                a + n + 1,
+                a + 1
+            );
+        }
+    }
+    let path = dir.join("sheet.obj");
+    std::fs::write(&path, s).unwrap();
+    path
+}
+
+fn job(dir: &Path, pattern: PathBuf, output: &Path) -> ClothJob {
+    ClothJob {
+        input: Some(write_sheet(dir)),
+        output: output.into(),
+        body: Some(pattern),
+        body_fps: Some(BODY_FPS),
+        // The bake's rate differs from the body's: steps fall between body frames.
+        fps: Some(50.0),
+        thickness: Some(THICKNESS),
+        ..ClothJob::default()
+    }
+}
+
+/// One node's mesh positions as played at key `k` of the first animation: base + Σ wᵢ·δᵢ.
+struct Played {
+    base: Vec<DVec3>,
+    deltas: Vec<Vec<DVec3>>,
+    times: Vec<f32>,
+    weights: Vec<f32>,
+}
+
+impl Played {
+    fn read(doc: &gltf::Document, buffers: &[gltf::buffer::Data], name: &str) -> Played {
+        let node = doc.nodes().find(|n| n.name() == Some(name)).unwrap();
+        let prim = node.mesh().unwrap().primitives().next().unwrap();
+        let reader = prim.reader(|b| Some(&buffers[b.index()]));
+        let v = |p: [f32; 3]| DVec3::new(p[0].into(), p[1].into(), p[2].into());
+        let base = reader.read_positions().unwrap().map(v).collect();
+        let deltas = reader
+            .read_morph_targets()
+            .map(|(p, _, _)| p.unwrap().map(v).collect())
+            .collect();
+        assert_eq!(doc.animations().count(), 1, "one animation plays both");
+        let anim = doc.animations().next().unwrap();
+        let channel = anim
+            .channels()
+            .find(|c| c.target().node().index() == node.index())
+            .unwrap();
+        let r = channel.reader(|b| Some(&buffers[b.index()]));
+        let times = r.read_inputs().unwrap().collect();
+        let weights = match r.read_outputs().unwrap() {
+            gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => w.into_f32().collect(),
+            _ => panic!("a weights channel"),
+        };
+        Played {
+            base,
+            deltas,
+            times,
+            weights,
+        }
+    }
+
+    fn at_key(&self, k: usize) -> Vec<DVec3> {
+        let n = self.deltas.len();
+        let w = &self.weights[k * n..(k + 1) * n];
+        self.base
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                *p + self
+                    .deltas
+                    .iter()
+                    .zip(w)
+                    .map(|(d, &w)| d[i] * f64::from(w))
+                    .sum::<DVec3>()
+            })
+            .collect()
+    }
+}
+
+#[test]
+fn a_rising_box_lifts_the_sheet_and_the_file_plays_the_box() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = write_sequence(dir.path());
+    let out = dir.path().join("sheet.glb");
+    let report = bake_cloth(&job(dir.path(), pattern, &out), &mut |_, _| {}).unwrap();
+
+    // The bake lasts the sequence: 10 body frames at 10 fps = 1 s = 50 frames at 50 fps.
+    assert_eq!(report.frames, 50);
+    let body = report.body.as_ref().unwrap();
+    assert_eq!(
+        (body.frames, body.vertices, body.triangles),
+        (FRAMES, 8, 12)
+    );
+    assert!(
+        report.unconverged_frames.is_empty(),
+        "{:?}",
+        report.residuals
+    );
+
+    let (doc, buffers, _) = gltf::import(&out).unwrap();
+    let sheet = Played::read(&doc, &buffers, "sheet");
+    let boxed = Played::read(&doc, &buffers, "sheet_body");
+    // Both keyed on the same written frames.
+    assert_eq!(sheet.times.len(), 51);
+    assert_eq!(sheet.times, boxed.times);
+
+    // The box as played equals the sequence, interpolated, at every written frame: its top
+    // corners at top_at(t), its bottom ones still.
+    for (k, &t) in boxed.times.iter().enumerate() {
+        let t = f64::from(t);
+        assert!((t - k as f64 / 50.0).abs() < 1e-6);
+        let played = boxed.at_key(k);
+        for (p, base) in played.iter().zip(&boxed.base) {
+            assert!((p.x.abs() - HALF).abs() < 1e-6 && (p.z.abs() - HALF).abs() < 1e-6);
+            let want = if base.y > BOTTOM + 1e-6 {
+                top_at(t)
+            } else {
+                BOTTOM
+            };
+            assert!(
+                (p.y - want).abs() < 1e-5,
+                "frame {k}: body vertex at y = {}, the sequence has {want}",
+                p.y
+            );
+        }
+    }
+
+    // The sheet, from the written file, rests on the risen top: every vertex above the box
+    // (over its top) within the contact band — the barrier keeps particles more than half the
+    // thickness off and rests them about a thickness off.
+    let last = sheet.at_key(50);
+    for p in &last {
+        assert!(p.x.abs() < HALF && p.z.abs() < HALF, "{p} left the top");
+        let gap = p.y - RISE;
+        assert!(
+            gap > 0.5 * THICKNESS && gap < 2.0 * THICKNESS,
+            "sheet vertex {p} is {gap} m above the risen top (thickness {THICKNESS})"
+        );
+    }
+    // And rode it up all the way: at every written frame every vertex is above the top as the
+    // sequence has it then, and less than two thicknesses above (it does not lag behind). While
+    // the top rises a thickness per step the barrier gives way to about a tenth of it.
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (k, &t) in sheet.times.iter().enumerate() {
+        for p in &sheet.at_key(k) {
+            let gap = p.y - top_at(f64::from(t));
+            lo = lo.min(gap);
+            hi = hi.max(gap);
+        }
+    }
+    eprintln!("gap between the sheet and the top over the bake: {lo:.5}..{hi:.5} m");
+    assert!(lo > 0.0 && hi < 2.0 * THICKNESS, "{lo}..{hi}");
+}
+
+#[test]
+fn frames_shorten_the_bake_and_cannot_lengthen_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = write_sequence(dir.path());
+    let out = dir.path().join("short.glb");
+    let mut j = job(dir.path(), pattern, &out);
+    j.frames = Some(51);
+    let e = bake_cloth(&j, &mut |_, _| {}).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Param {
+                param: Param::Frames,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(!out.exists());
+    j.frames = Some(5);
+    let report = bake_cloth(&j, &mut |_, _| {}).unwrap();
+    assert_eq!(report.frames, 5);
+}
+
+#[test]
+fn a_missing_frame_is_named_before_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = write_sequence(dir.path());
+    std::fs::remove_file(dir.path().join("box3.obj")).unwrap();
+    let out = dir.path().join("gap.glb");
+    let mut steps = 0;
+    let e = bake_cloth(&job(dir.path(), pattern, &out), &mut |_, _| steps += 1).unwrap_err();
+    let message = e.to_string();
+    assert!(message.contains("box3.obj"), "{message}");
+    assert!(message.contains("missing"), "{message}");
+    assert_eq!(steps, 0, "nothing is simulated");
+    assert!(!out.exists());
+}
+
+#[test]
+fn a_frame_with_other_vertices_is_named_before_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = write_sequence(dir.path());
+    std::fs::write(dir.path().join("box7.obj"), box_obj(RISE, true)).unwrap();
+    let out = dir.path().join("odd.glb");
+    let mut steps = 0;
+    let e = bake_cloth(&job(dir.path(), pattern, &out), &mut |_, _| steps += 1).unwrap_err();
+    let message = e.to_string();
+    assert!(message.contains("box7.obj"), "{message}");
+    assert!(message.contains("9 vertices"), "{message}");
+    assert!(message.contains("box0.obj"), "{message}");
+    assert_eq!(steps, 0, "nothing is simulated");
+    assert!(!out.exists());
+}
+
+#[test]
+fn a_malformed_frame_is_named_with_its_line_before_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = write_sequence(dir.path());
+    let text = box_obj(RISE, false).replacen("v 0.5", "v zero", 1);
+    std::fs::write(dir.path().join("box9.obj"), text).unwrap();
+    let out = dir.path().join("bad.glb");
+    let mut steps = 0;
+    let e = bake_cloth(&job(dir.path(), pattern, &out), &mut |_, _| steps += 1).unwrap_err();
+    let message = e.to_string();
+    assert!(message.contains("box9.obj"), "{message}");
+    assert!(message.contains("box9.obj:2:"), "{message}");
+    assert_eq!(steps, 0);
+}
+
+#[test]
+fn the_body_rate_is_required_and_the_numbering_may_be_padded() {
+    let dir = tempfile::tempdir().unwrap();
+    // Frames numbered 1001.. with %04d.
+    for i in 0..3 {
+        let top = top_at(i as f64 / BODY_FPS);
+        std::fs::write(
+            dir.path().join(format!("pad_{:04}.obj", 1001 + i)),
+            box_obj(top, false),
+        )
+        .unwrap();
+    }
+    let out = dir.path().join("pad.glb");
+    let mut j = job(dir.path(), dir.path().join("pad_%04d.obj"), &out);
+    j.body_fps = None;
+    let e = bake_cloth(&j, &mut |_, _| {}).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Param {
+                param: Param::BodyFps,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    j.body_fps = Some(BODY_FPS);
+    let report = bake_cloth(&j, &mut |_, _| {}).unwrap();
+    let body = report.body.unwrap();
+    assert_eq!(body.frames, 3);
+    assert!(body.first_file.ends_with("pad_1001.obj"));
+    assert_eq!(report.frames, 10);
+    // Starting later leaves frames out.
+    j.body_start = Some(1002);
+    let report = bake_cloth(&j, &mut |_, _| {}).unwrap();
+    assert_eq!(report.body.unwrap().frames, 2);
+    assert_eq!(report.frames, 5);
+}
+
+#[test]
+fn body_options_without_a_body_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("none.glb");
+    let mut j = job(dir.path(), PathBuf::new(), &out);
+    j.body = None;
+    let e = bake_cloth(&j, &mut |_, _| {}).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Param {
+                param: Param::BodyFps,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
