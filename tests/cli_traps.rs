@@ -870,36 +870,36 @@ fn outputs_that_cannot_be_written_are_refused_before_the_bake() {
     fails_exactly(
         dir.path(),
         &with(&["-o", "notes.txt/cloth.glb"]),
-        "error: invalid value for --output: notes.txt/cloth.glb: notes.txt is a file, not a folder",
+        "error: invalid value for --output: notes.txt/cloth.glb: notes.txt is a file, not a directory",
     );
     // A missing folder below a file cannot be created either.
     fails_exactly(
         dir.path(),
         &with(&["-o", "notes.txt/new/cloth.gltf"]),
-        "error: invalid value for --output: notes.txt/new/cloth.gltf: notes.txt is a file, not a folder",
+        "error: invalid value for --output: notes.txt/new/cloth.gltf: notes.txt is a file, not a directory",
     );
     fails_exactly(
         dir.path(),
         &with(&["-o", "exports"]),
-        "error: invalid value for --output: exports: is a folder, not a file",
+        "error: invalid value for --output: exports: is a directory, not a file",
     );
     fails_exactly(
         dir.path(),
         &with(&["-o", "cloth.glb", "--vat", "notes.txt/cloth.exr"]),
-        "error: invalid value for --vat: notes.txt/cloth.exr: notes.txt is a file, not a folder",
+        "error: invalid value for --vat: notes.txt/cloth.exr: notes.txt is a file, not a directory",
     );
     // The report is checked with the rest: no GLB is left behind a failing --report.
     fails_exactly(
         dir.path(),
         &with(&["-o", "cloth.glb", "--report", "notes.txt/report.json"]),
-        "error: invalid value for --report: notes.txt/report.json: notes.txt is a file, not a folder",
+        "error: invalid value for --report: notes.txt/report.json: notes.txt is a file, not a directory",
     );
     fails_exactly(
         dir.path(),
         &[
             "ik", "--curve", "circle", "-o", "pen.glb", "--report", "exports",
         ],
-        "error: invalid value for --report: exports: is a folder, not a file",
+        "error: invalid value for --report: exports: is a directory, not a file",
     );
     // A missing folder is created when the bake writes.
     let (code, _, err) = run(dir.path(), &with(&["-o", "new/deeper/cloth.glb"]));
@@ -917,7 +917,7 @@ fn outputs_that_cannot_be_written_are_refused_before_the_bake() {
             fails_exactly(
                 dir.path(),
                 &with(&["-o", "locked/cloth.glb"]),
-                "error: invalid value for --output: locked/cloth.glb: cannot write in the folder locked (permission denied)",
+                "error: invalid value for --output: locked/cloth.glb: cannot write in the directory locked (permission denied)",
             );
         } else {
             eprintln!("running as root: the unwritable-folder case is skipped");
@@ -1033,14 +1033,14 @@ fn scene_jobs_writing_one_file_are_refused_before_running() {
     fails_exactly(
         dir.path(),
         &["run", "--jobs", "1", "late.toml"],
-        "error: late.toml: job `late` (cloth): invalid value for `output`: notes.txt/late.glb: notes.txt is a file, not a folder",
+        "error: late.toml: job `late` (cloth): invalid value for `output`: notes.txt/late.glb: notes.txt is a file, not a directory",
     );
     // So is the run's own --report.
     scene("fine.toml", &[job("ok", "output = \"ok.glb\"")]);
     fails_exactly(
         dir.path(),
         &["run", "fine.toml", "--report", "notes.txt/run.json"],
-        "error: invalid value for --report: notes.txt/run.json: notes.txt is a file, not a folder",
+        "error: invalid value for --report: notes.txt/run.json: notes.txt is a file, not a directory",
     );
 }
 

@@ -84,7 +84,7 @@ pub fn ik_outputs(job: &IkJob) -> Vec<OutputFile> {
 /// Checks that every file can be written, without writing anything: its folder (or the nearest
 /// existing folder above it, where the missing ones will be created) is a folder this process may
 /// write in, the path is not a folder, and an existing file is not read-only (an export never
-/// replaces a file its owner protected).
+/// replaces a file its owner protected). An empty path is left to the job's own checks.
 ///
 /// # Errors
 /// [`Error::Param`] naming the file's parameter, the file and what is wrong.
@@ -93,10 +93,11 @@ pub fn check_writable(files: &[OutputFile]) -> Result<()> {
     for OutputFile { param, path } in files {
         let fail = |what: String| Error::param_value(*param, format!("{}: {what}", path.display()));
         if path.as_os_str().is_empty() {
-            return Err(Error::param_value(*param, "the file name is empty"));
+            // No file given: the job's own checks say so, in their order.
+            continue;
         }
         match std::fs::metadata(path) {
-            Ok(m) if m.is_dir() => return Err(fail("is a folder, not a file".into())),
+            Ok(m) if m.is_dir() => return Err(fail("is a directory, not a file".into())),
             Ok(m) if m.permissions().readonly() => {
                 return Err(fail(
                     "exists and is read-only; make it writable or choose another file".into(),
@@ -121,7 +122,7 @@ pub fn check_writable(files: &[OutputFile]) -> Result<()> {
         }
         if !existing.is_dir() {
             return Err(fail(format!(
-                "{} is a file, not a folder",
+                "{} is a file, not a directory",
                 existing.display()
             )));
         }
@@ -134,7 +135,7 @@ pub fn check_writable(files: &[OutputFile]) -> Result<()> {
             .tempfile_in(existing)
         {
             return Err(fail(format!(
-                "cannot write in the folder {} ({})",
+                "cannot write in the directory {} ({})",
                 existing.display(),
                 os_reason(&e)
             )));
