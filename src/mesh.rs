@@ -37,6 +37,9 @@ pub struct Mesh {
     pub groups: BTreeMap<String, Vec<u32>>,
     /// For each particle, its index among the file's positions (pins by `index:` use file order).
     pub file_index: Vec<u32>,
+    /// The named objects (OBJ `o` statements) whose faces the body holds, in file order; empty
+    /// for other formats.
+    pub objects: Vec<String>,
     /// Non-fatal quirks found while loading (skipped degenerate faces, unused positions...).
     pub warnings: Vec<String>,
 }

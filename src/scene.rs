@@ -21,6 +21,7 @@ use std::path::{Component, Path, PathBuf};
 
 use serde::de::{self, Deserialize, Visitor};
 
+use crate::bake::outputs::{check_writable, cloth_outputs, ik_outputs, OutputFile};
 use crate::bake::{bake_cloth, bake_ik, ClothJob, ClothReport, IkJob, IkReport};
 use crate::cloth::collide::ColliderSpec;
 use crate::error::{Error, Result};
@@ -63,10 +64,22 @@ pub enum Report {
 }
 
 impl Report {
-    /// Frames baked.
+    /// Frames simulated or solved (after the initial state).
     pub fn frames(&self) -> usize {
         match self {
             Report::Cloth(r) => r.frames,
+            Report::Ik(r) => r.frames,
+        }
+    }
+
+    /// Frames written: those simulated less, for a bake on a character, the blend-in and
+    /// warm-up frames simulated first and cut.
+    pub fn frames_written(&self) -> usize {
+        match self {
+            Report::Cloth(r) => r
+                .character
+                .as_ref()
+                .map_or(r.frames, |c| r.frames.saturating_sub(c.first_written_frame)),
             Report::Ik(r) => r.frames,
         }
     }
@@ -103,6 +116,22 @@ impl Job {
             Job::Cloth(j) => j.report.as_deref(),
             Job::Ik(j) => j.report.as_deref(),
         }
+    }
+
+    /// Every file the job writes (its report included), with the parameter naming each.
+    pub fn outputs(&self) -> Vec<OutputFile> {
+        match self {
+            Job::Cloth(j) => cloth_outputs(j),
+            Job::Ik(j) => ik_outputs(j),
+        }
+    }
+
+    /// Checks that every file the job writes can be written, before it runs.
+    ///
+    /// # Errors
+    /// As [`check_writable`].
+    pub fn check_outputs(&self) -> Result<()> {
+        check_writable(&self.outputs())
     }
 
     /// Frames the job will bake, when known before it runs (for progress displays).
@@ -176,7 +205,12 @@ impl Scene {
         check_keys(&table).map_err(|(job, m)| fail(job, m))?;
         let file: SceneFile = toml::from_str(text).map_err(|e| {
             let job = e.span().and_then(|span| job_at(text, &table, span.start));
-            fail(job, e.to_string().trim_end().to_owned())
+            // A value of the wrong form: its line and key in one plain sentence.
+            let message = match e.span().and_then(|span| key_at(text, span.start)) {
+                Some((line, key)) => format!("line {line}: `{key}`: {}", e.message()),
+                None => e.to_string().trim_end().to_owned(),
+            };
+            fail(job, message)
         })?;
         let dir = path.parent().unwrap_or(Path::new(""));
         let mut jobs = Vec::new();
@@ -225,11 +259,57 @@ impl Scene {
                 format!("two jobs are named `{}`; names must be unique", w[0]),
             ));
         }
+        shared_outputs(&jobs).map_err(|m| fail(None, m))?;
         Ok(Scene {
             path: path.to_path_buf(),
             jobs,
         })
     }
+}
+
+/// Two jobs that write one file (their outputs, `.bin`s, VAT files or reports), or one job that
+/// writes a file twice: whichever is written last would silently replace the other.
+fn shared_outputs(jobs: &[SceneJob]) -> std::result::Result<(), String> {
+    let mut seen: std::collections::HashMap<PathBuf, (&str, crate::param::Param)> =
+        std::collections::HashMap::new();
+    for job in jobs {
+        for OutputFile { param, path } in job.job.outputs() {
+            if let Some((first, first_param)) =
+                seen.insert(path.clone(), (job.name.as_str(), param))
+            {
+                return Err(if first == job.name {
+                    format!(
+                        "job `{first}` writes {} twice (as its {first_param} and its {param}); \
+                         give each its own file",
+                        path.display()
+                    )
+                } else {
+                    format!(
+                        "jobs `{first}` and `{}` both write {} (as their {first_param} and \
+                         {param}); give each job its own files",
+                        job.name,
+                        path.display()
+                    )
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The one-based line and the key of the `key = value` whose value starts at byte `offset` of
+/// the scene's text.
+fn key_at(text: &str, offset: usize) -> Option<(usize, String)> {
+    let before = text.get(..offset)?;
+    let line = before.matches('\n').count() + 1;
+    let start = before.rfind('\n').map_or(0, |i| i + 1);
+    let (key, rest) = before[start..].split_once('=')?;
+    let key = key.trim().trim_matches('"');
+    let plain = !key.is_empty()
+        && key
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    (plain && rest.trim().is_empty()).then(|| (line, key.to_owned()))
 }
 
 /// "[[cloth]] job 2 (`name`)" for the job whose table holds byte `offset` of the scene's text.

@@ -80,20 +80,14 @@ pub fn parsed_value<T: std::str::FromStr<Err = Error>>(
 /// specifications (pins, colliders, limits...) as the strings the command line takes, so a scene
 /// file and a command line accept exactly the same spellings.
 pub mod de {
+    use std::fmt;
     use std::str::FromStr;
 
     use glam::DVec3;
-    use serde::de::Error as _;
+    use serde::de::{Error as _, IgnoredAny, MapAccess, SeqAccess, Visitor};
     use serde::{Deserialize, Deserializer};
 
     use crate::error::Error;
-
-    #[derive(Deserialize)]
-    #[serde(untagged)]
-    enum Vec3Repr {
-        Text(String),
-        Array([f64; 3]),
-    }
 
     #[derive(Deserialize)]
     #[serde(untagged)]
@@ -102,12 +96,98 @@ pub mod de {
         Many(Vec<String>),
     }
 
-    /// An optional vector: `"X,Y,Z"` or `[X, Y, Z]`.
+    /// The expected form of a vector, for messages.
+    pub const VEC3_FORM: &str = "three numbers, [X, Y, Z] or \"X,Y,Z\"";
+
+    /// An optional vector: `"X,Y,Z"` or `[X, Y, Z]`. A wrong form is a plain message giving the
+    /// expected one (the reader of the scene file names the key and the line).
     pub fn opt_vec3<'de, D: Deserializer<'de>>(d: D) -> Result<Option<DVec3>, D::Error> {
-        match Vec3Repr::deserialize(d)? {
-            Vec3Repr::Text(s) => super::vec3_value(&s).map(Some).map_err(D::Error::custom),
-            Vec3Repr::Array(a) if a.iter().all(|v| v.is_finite()) => Ok(Some(DVec3::from_array(a))),
-            Vec3Repr::Array(_) => Err(D::Error::custom("the vector has a non-finite component")),
+        d.deserialize_any(Vec3Visitor).map(Some)
+    }
+
+    struct Vec3Visitor;
+
+    impl<'de> Visitor<'de> for Vec3Visitor {
+        type Value = DVec3;
+
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str(VEC3_FORM)
+        }
+
+        fn visit_str<E: serde::de::Error>(self, s: &str) -> Result<DVec3, E> {
+            super::vec3_value(s).map_err(E::custom)
+        }
+
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<DVec3, A::Error> {
+            let mut values = Vec::new();
+            while let Some(v) = seq.next_element::<Component>()? {
+                values.push(v.0);
+            }
+            if values.len() != 3 {
+                return Err(A::Error::custom(format!(
+                    "expected {VEC3_FORM}; found {} value{}",
+                    values.len(),
+                    if values.len() == 1 { "" } else { "s" }
+                )));
+            }
+            let mut out = [0.0; 3];
+            for (i, (slot, v)) in out.iter_mut().zip(values).enumerate() {
+                *slot = match v {
+                    Ok(x) if x.is_finite() => x,
+                    Ok(x) => {
+                        return Err(A::Error::custom(format!(
+                            "expected {VEC3_FORM}; value {} is {x}, not a finite number",
+                            i + 1
+                        )))
+                    }
+                    Err(found) => {
+                        return Err(A::Error::custom(format!(
+                            "expected {VEC3_FORM}; value {} is {found}, not a number",
+                            i + 1
+                        )))
+                    }
+                };
+            }
+            Ok(DVec3::from_array(out))
+        }
+    }
+
+    /// One value of a vector's array: a number, or what was found instead.
+    struct Component(Result<f64, String>);
+
+    impl<'de> Deserialize<'de> for Component {
+        fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            struct V;
+            impl<'de> Visitor<'de> for V {
+                type Value = Component;
+                fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                    f.write_str("a number")
+                }
+                fn visit_f64<E>(self, v: f64) -> Result<Component, E> {
+                    Ok(Component(Ok(v)))
+                }
+                fn visit_i64<E>(self, v: i64) -> Result<Component, E> {
+                    Ok(Component(Ok(v as f64)))
+                }
+                fn visit_u64<E>(self, v: u64) -> Result<Component, E> {
+                    Ok(Component(Ok(v as f64)))
+                }
+                fn visit_str<E>(self, v: &str) -> Result<Component, E> {
+                    Ok(Component(Err(format!("{v:?}"))))
+                }
+                fn visit_bool<E>(self, v: bool) -> Result<Component, E> {
+                    Ok(Component(Err(v.to_string())))
+                }
+                fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Component, A::Error> {
+                    while seq.next_element::<IgnoredAny>()?.is_some() {}
+                    Ok(Component(Err("an array".into())))
+                }
+                fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Component, A::Error> {
+                    while map.next_entry::<IgnoredAny, IgnoredAny>()?.is_some() {}
+                    Ok(Component(Err("a table".into())))
+                }
+            }
+            d.deserialize_any(V)
         }
     }
 

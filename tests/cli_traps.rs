@@ -854,3 +854,517 @@ fn chain_help_shows_how_to_quote_node_indices() {
         "{out}"
     );
 }
+
+/// Every file a bake writes is checked before the bake starts (an unwritable folder was reported
+/// after the bake, a failing `--report` left the GLB written behind an exit 1): the glTF, its
+/// `.bin`, the VAT files and the report, each named with its option; nothing is written.
+#[test]
+fn outputs_that_cannot_be_written_are_refused_before_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("notes.txt"), "a file, not a folder\n").unwrap();
+    std::fs::create_dir(dir.path().join("exports")).unwrap();
+    let lab = ["cloth", "--preset", "lab-cloth", "--frames", "2"];
+    let with = |extra: &[&'static str]| -> Vec<&'static str> {
+        lab.iter().chain(extra).copied().collect()
+    };
+    fails_exactly(
+        dir.path(),
+        &with(&["-o", "notes.txt/cloth.glb"]),
+        "error: invalid value for --output: notes.txt/cloth.glb: notes.txt is a file, not a directory",
+    );
+    // A missing folder below a file cannot be created either.
+    fails_exactly(
+        dir.path(),
+        &with(&["-o", "notes.txt/new/cloth.gltf"]),
+        "error: invalid value for --output: notes.txt/new/cloth.gltf: notes.txt is a file, not a directory",
+    );
+    fails_exactly(
+        dir.path(),
+        &with(&["-o", "exports"]),
+        "error: invalid value for --output: exports: is a directory, not a file",
+    );
+    fails_exactly(
+        dir.path(),
+        &with(&["-o", "cloth.glb", "--vat", "notes.txt/cloth.exr"]),
+        "error: invalid value for --vat: notes.txt/cloth.exr: notes.txt is a file, not a directory",
+    );
+    // The report is checked with the rest: no GLB is left behind a failing --report.
+    fails_exactly(
+        dir.path(),
+        &with(&["-o", "cloth.glb", "--report", "notes.txt/report.json"]),
+        "error: invalid value for --report: notes.txt/report.json: notes.txt is a file, not a directory",
+    );
+    fails_exactly(
+        dir.path(),
+        &[
+            "ik", "--curve", "circle", "-o", "pen.glb", "--report", "exports",
+        ],
+        "error: invalid value for --report: exports: is a directory, not a file",
+    );
+    // A missing folder is created when the bake writes.
+    let (code, _, err) = run(dir.path(), &with(&["-o", "new/deeper/cloth.glb"]));
+    assert_eq!(code, 0, "{err}");
+    assert!(dir.path().join("new/deeper/cloth.glb").is_file());
+
+    // A folder the user may not write in (not testable as root, who may write anywhere).
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let locked = dir.path().join("locked");
+        std::fs::create_dir(&locked).unwrap();
+        std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o555)).unwrap();
+        if std::fs::write(locked.join("probe"), b"").is_err() {
+            fails_exactly(
+                dir.path(),
+                &with(&["-o", "locked/cloth.glb"]),
+                "error: invalid value for --output: locked/cloth.glb: cannot write in the directory locked (permission denied)",
+            );
+        } else {
+            eprintln!("running as root: the unwritable-folder case is skipped");
+        }
+        std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+}
+
+/// An existing read-only export is an error naming the file (it was silently replaced), the
+/// `.bin` of a `.gltf` too; the file keeps its bytes.
+#[test]
+fn a_read_only_export_is_not_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = |out: &'static str| ["cloth", "--preset", "lab-cloth", "--frames", "2", "-o", out];
+    for out in ["sheet.glb", "sheet.gltf"] {
+        let (code, _, err) = run(dir.path(), &args(out));
+        assert_eq!(code, 0, "{err}");
+    }
+    let protect = |name: &str| {
+        let path = dir.path().join(name);
+        let mut p = std::fs::metadata(&path).unwrap().permissions();
+        p.set_readonly(true);
+        std::fs::set_permissions(&path, p).unwrap();
+        std::fs::read(&path).unwrap()
+    };
+    let glb = protect("sheet.glb");
+    fails_exactly(
+        dir.path(),
+        &args("sheet.glb"),
+        "error: invalid value for --output: sheet.glb: exists and is read-only; make it writable or choose another file",
+    );
+    assert_eq!(std::fs::read(dir.path().join("sheet.glb")).unwrap(), glb);
+    let bin = protect("sheet.bin");
+    fails_exactly(
+        dir.path(),
+        &args("sheet.gltf"),
+        "error: invalid value for --output: sheet.bin: exists and is read-only; make it writable or choose another file",
+    );
+    assert_eq!(std::fs::read(dir.path().join("sheet.bin")).unwrap(), bin);
+}
+
+/// Two jobs of a scene that write one file (it was overwritten by whichever ended last) are an
+/// error naming both before any job runs; so is one job writing a file twice, and a file of a
+/// later job that cannot be written.
+#[test]
+fn scene_jobs_writing_one_file_are_refused_before_running() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = |name: &str, rest: &str| {
+        format!("[[cloth]]\nname = \"{name}\"\npreset = \"lab-cloth\"\nframes = 2\n{rest}\n")
+    };
+    let scene = |file: &str, jobs: &[String]| {
+        std::fs::write(dir.path().join(file), jobs.concat()).unwrap();
+    };
+    scene(
+        "same.toml",
+        &[
+            job("first", "output = \"out/a.glb\""),
+            job("second", "output = \"out/../out/a.glb\""),
+        ],
+    );
+    fails_exactly(
+        dir.path(),
+        &["run", "--jobs", "2", "same.toml"],
+        "error: same.toml: jobs `first` and `second` both write out/a.glb (as their `output` and `output`); give each job its own files",
+    );
+    // A .gltf's .bin against another job's report.
+    scene(
+        "bin.toml",
+        &[
+            job("sheet", "output = \"sheet.gltf\""),
+            job("notes", "output = \"notes.glb\"\nreport = \"sheet.bin\""),
+        ],
+    );
+    fails_exactly(
+        dir.path(),
+        &["run", "bin.toml"],
+        "error: bin.toml: jobs `sheet` and `notes` both write sheet.bin (as their `output` and `report`); give each job its own files",
+    );
+    // A VAT's JSON against another job's report; and one job's VAT JSON as its own report.
+    scene(
+        "vat.toml",
+        &[
+            job("a", "output = \"a.glb\"\nvat = \"a.exr\""),
+            job("b", "output = \"b.glb\"\nreport = \"a.json\""),
+        ],
+    );
+    fails_exactly(
+        dir.path(),
+        &["run", "vat.toml"],
+        "error: vat.toml: jobs `a` and `b` both write a.json (as their `vat` and `report`); give each job its own files",
+    );
+    scene(
+        "self.toml",
+        &[job(
+            "a",
+            "output = \"a.glb\"\nvat = \"a.exr\"\nreport = \"a.json\"",
+        )],
+    );
+    fails_exactly(
+        dir.path(),
+        &["run", "self.toml"],
+        "error: self.toml: job `a` writes a.json twice (as its `vat` and its `report`); give each its own file",
+    );
+    // The second job's folder is a file: refused before the first job runs.
+    std::fs::write(dir.path().join("notes.txt"), "").unwrap();
+    scene(
+        "late.toml",
+        &[
+            job("ok", "output = \"ok.glb\""),
+            job("late", "output = \"notes.txt/late.glb\""),
+        ],
+    );
+    fails_exactly(
+        dir.path(),
+        &["run", "--jobs", "1", "late.toml"],
+        "error: late.toml: job `late` (cloth): invalid value for `output`: notes.txt/late.glb: notes.txt is a file, not a directory",
+    );
+    // So is the run's own --report.
+    scene("fine.toml", &[job("ok", "output = \"ok.glb\"")]);
+    fails_exactly(
+        dir.path(),
+        &["run", "fine.toml", "--report", "notes.txt/run.json"],
+        "error: invalid value for --report: notes.txt/run.json: notes.txt is a file, not a directory",
+    );
+}
+
+/// An OBJ of several objects read whole says which objects it merged and names `--object`
+/// (`torus_with_plane.obj` fell as one body without a word); with `--object`, the positions of
+/// the other objects are left out as asked, and only a position no face of the file uses is
+/// reported (it read as a broken file: "5 positions are used by no face").
+#[test]
+fn merged_obj_objects_are_named_and_picking_one_is_not_a_fault() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = crate_path("tests/fixtures/two_objects.obj");
+    std::fs::copy(&obj, dir.path().join("two.obj")).unwrap();
+    // Objects and their used positions, read here from the file's `o` and `f` lines.
+    let text = std::fs::read_to_string(&obj).unwrap();
+    let objects: Vec<&str> = text.lines().filter_map(|l| l.strip_prefix("o ")).collect();
+    let positions = text.lines().filter(|l| l.starts_with("v ")).count();
+    let used: std::collections::BTreeSet<&str> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("f "))
+        .flat_map(str::split_whitespace)
+        .collect();
+    assert_eq!((objects.len(), positions, used.len()), (2, 9, 8));
+    let bake = |extra: &[&str]| {
+        let mut args = vec!["cloth", "two.obj", "--frames", "2", "-o", "two.glb"];
+        args.extend_from_slice(extra);
+        let (code, _, err) = run(dir.path(), &args);
+        assert_eq!(code, 0, "{err}");
+        err.lines().map(str::to_owned).collect::<Vec<_>>()
+    };
+    let lines = bake(&[]);
+    assert_eq!(lines.len(), 3, "{lines:?}");
+    assert!(
+        lines[0].starts_with("two: baked 2 frames (8 particles,"),
+        "{lines:?}"
+    );
+    assert_eq!(
+        lines[1..],
+        [
+            "warning: two: 1 position is used by no face and was left out".to_owned(),
+            format!(
+                "warning: two: two.obj holds 2 objects ({}), merged into one body; --object NAME bakes one of them",
+                objects.join(", ")
+            ),
+        ]
+    );
+    let lines = bake(&["--object", objects[0]]);
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    assert!(
+        lines[0].starts_with("two: baked 2 frames (4 particles,"),
+        "{lines:?}"
+    );
+    assert_eq!(
+        lines[1],
+        "warning: two: 1 position is used by no face and was left out"
+    );
+    // The report lists the merge warning in the scene keys' words.
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth", "two.obj", "--frames", "1", "-o", "r.glb", "--report", "r.json",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("r.json")).unwrap()).unwrap();
+    assert_eq!(
+        report["warnings"][1],
+        "two.obj holds 2 objects (Cloth, Floor), merged into one body; `object` NAME bakes one of them"
+    );
+}
+
+/// A scene-file typo in a vector names the key, its line and the expected form (it printed
+/// serde's `data did not match any variant of untagged enum Vec3Repr`).
+#[test]
+fn a_mistyped_scene_vector_names_the_key_and_the_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "gravity = [0, \"x\", 0]",
+            "`gravity`: expected three numbers, [X, Y, Z] or \"X,Y,Z\"; value 2 is \"x\", not a number",
+        ),
+        (
+            "gravity = [0, -9.81]",
+            "`gravity`: expected three numbers, [X, Y, Z] or \"X,Y,Z\"; found 2 values",
+        ),
+        (
+            "wind = 3",
+            "`wind`: invalid type: integer `3`, expected three numbers, [X, Y, Z] or \"X,Y,Z\"",
+        ),
+        (
+            "translate = \"0,1\"",
+            "`translate`: `0,1`: expected 3 comma-separated numbers (X,Y,Z)",
+        ),
+    ];
+    for (line, message) in cases {
+        std::fs::write(
+            dir.path().join("typo.toml"),
+            format!(
+                "[[cloth]]\nname = \"sheet\"\npreset = \"lab-cloth\"\n{line}\noutput = \"a.glb\"\n"
+            ),
+        )
+        .unwrap();
+        fails_exactly(
+            dir.path(),
+            &["run", "typo.toml"],
+            &format!("error: typo.toml: [[cloth]] job 1 (`sheet`): line 4: {message}"),
+        );
+    }
+    // Both forms still read.
+    std::fs::write(
+        dir.path().join("ok.toml"),
+        "[[cloth]]\npreset = \"lab-cloth\"\nframes = 1\ngravity = [0, -9.81, 0]\nwind = \"1,0,0\"\noutput = \"a.glb\"\n",
+    )
+    .unwrap();
+    let (code, _, err) = run(dir.path(), &["run", "ok.toml"]);
+    assert_eq!(code, 0, "{err}");
+}
+
+/// Fox's Walk: its duration read here with the gltf crate.
+fn fox_walk_seconds() -> f64 {
+    let (doc, buffers, _) = gltf::import(crate_path("meshes/Fox.glb")).unwrap();
+    let walk = doc.animations().find(|a| a.name() == Some("Walk")).unwrap();
+    let times: Vec<f32> = walk
+        .channels()
+        .flat_map(|c| {
+            c.reader(|b| Some(&buffers[b.index()]))
+                .read_inputs()
+                .unwrap()
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let (lo, hi) = times
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(lo, hi), &t| (lo.min(t), hi.max(t)));
+    f64::from(hi - lo)
+}
+
+/// The cape of `meshes/garments/fox_cape.obj` on Fox's walk, `--scale` times its size, pinned at
+/// the neck (the pin box scaled alike).
+fn cape_args(scale: &str, rig_scale: &str, out: &str) -> Vec<String> {
+    let s: f64 = scale.parse().unwrap();
+    let pin = [-1.0, 0.69, 0.235, 1.0, 0.71, 0.245].map(|c| (c * s).to_string());
+    [
+        "cloth",
+        &s_(&crate_path("meshes/garments/fox_cape.obj")),
+        "--rig",
+        &s_(&crate_path("meshes/Fox.glb")),
+        "--animation",
+        "Walk",
+        "--rig-scale",
+        rig_scale,
+        "--scale",
+        scale,
+        "--thickness",
+        "0.003",
+        "--max-iterations",
+        "100",
+        "--pin",
+        &format!("box:{}", pin.join(",")),
+        "-o",
+        out,
+    ]
+    .map(str::to_owned)
+    .to_vec()
+}
+
+fn s_(p: &Path) -> String {
+    s(p)
+}
+
+/// A bake on a character says frames simulated and frames written apart (it said "baked 57
+/// frames" for a 21-frame file): the blend-in and warm-up frames follow from Walk's duration,
+/// read here, and the written count is the file's morph-weight keys less the first pose.
+#[test]
+fn a_character_bake_says_frames_simulated_and_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = cape_args("1", "0.01", "cape.glb");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let (code, _, err) = run(dir.path(), &args);
+    assert_eq!(code, 0, "{err}");
+    // Defaults: 30 fps rounded to whole frames a loop, 0.5 s blend-in, one warm-up loop, one
+    // written loop.
+    let cycle = fox_walk_seconds();
+    let per_cycle = (cycle * 30.0).round() as usize;
+    let fps = per_cycle as f64 / cycle;
+    let blend = (0.5 * fps).ceil() as usize;
+    let total = blend + 2 * per_cycle;
+    assert_eq!((per_cycle, blend, total), (21, 15, 57));
+    let first = err.lines().next().unwrap();
+    assert!(
+        first.starts_with(&format!(
+            "fox_cape: baked {per_cycle} frames ({total} simulated: {blend} blending in, \
+             {per_cycle} warming up, {per_cycle} written; 315 particles,"
+        )) && first.contains(&format!("; {total} of {total} frames within tolerance")),
+        "{err}"
+    );
+    let (doc, buffers, _) = gltf::import(dir.path().join("cape.glb")).unwrap();
+    let keys = doc
+        .animations()
+        .flat_map(|a| a.channels().collect::<Vec<_>>())
+        .find(|c| c.target().property() == gltf::animation::Property::MorphTargetWeights)
+        .unwrap()
+        .reader(|b| Some(&buffers[b.index()]))
+        .read_inputs()
+        .unwrap()
+        .count();
+    assert_eq!(keys, per_cycle + 1);
+    // A plain bake simulates what it writes and says nothing more.
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--frames",
+            "3",
+            "-o",
+            "lab.glb",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.starts_with("lab_cloth: baked 3 frames (121 particles,"),
+        "{err}"
+    );
+}
+
+/// A garment in other units than its character (a cape in centimetres on the metre-scale Fox
+/// "succeeded" with an 8.8 m loop-seam warning) is refused before the bake with the `--scale`
+/// (or `--rig-scale`) that fixes it; a cloth of implausible size alone is a warning. The
+/// garment's size is computed here from the OBJ's `v` lines.
+#[test]
+fn garment_and_character_in_different_units_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let cape = obj_object_positions(&crate_path("meshes/garments/fox_cape.obj"), None);
+    let diagonal = {
+        let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+        for p in &cape {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt()
+    };
+    assert_eq!(format!("{:.1}", diagonal * 100.0), "48.8");
+    // Fox at rest is 175.55 units across (its file is in centimetres: --rig-scale 0.01).
+    let fails = |scale: &str, rig_scale: &str, message: String| {
+        let args = cape_args(scale, rig_scale, "cape.glb");
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        fails_exactly(dir.path(), &args, &message);
+    };
+    fails(
+        "100",
+        "0.01",
+        format!(
+            "error: invalid value for --scale: 100: the garment ({:.2} m across) is {:.0} times \
+             the size of the character (1.76 m across, with --rig-scale 0.01): are they in \
+             different units? try --scale 1 for the garment, or --rig-scale 1 for the character",
+            diagonal * 100.0,
+            diagonal * 100.0 / 1.7555
+        ),
+    );
+    fails(
+        "1000",
+        "0.01",
+        format!(
+            "error: invalid value for --scale: 1000: the garment ({:.2} m across) is {:.0} times \
+             the size of the character (1.76 m across, with --rig-scale 0.01): are they in \
+             different units? try --scale 1 for the garment, or --rig-scale 10 for the character",
+            diagonal * 1000.0,
+            diagonal * 1000.0 / 1.7555
+        ),
+    );
+    // The rig's centimetres taken as metres: the character is 100 times too large.
+    fails(
+        "1",
+        "1",
+        format!(
+            "error: invalid value for --scale: 1: the garment ({:.1} cm across) is 1/{:.0} of \
+             the size of the character (175.55 m across, with --rig-scale 1): are they in \
+             different units? try --scale 100 for the garment, or --rig-scale 0.01 for the \
+             character",
+            diagonal * 100.0,
+            175.55 / diagonal
+        ),
+    );
+    // Implausible cloth sizes alone: a warning with the scale that brings it near 1 m.
+    let plane = s(&crate_path("meshes/plane_30x30.obj"));
+    for (scale, message) in [
+        (
+            "0.001",
+            "the cloth is 1.41 mm across (its bounding box's diagonal, scaled by 0.001), not a \
+             plausible size in metres (0.01 to 100 m); if the input is in other units, --scale 1 \
+             makes it 1.41 m",
+        ),
+        (
+            "100",
+            "the cloth is 141.42 m across (its bounding box's diagonal, scaled by 100), not a \
+             plausible size in metres (0.01 to 100 m); if the input is in other units, --scale 1 \
+             makes it 1.41 m",
+        ),
+    ] {
+        let (code, _, err) = run(
+            dir.path(),
+            &[
+                "cloth", &plane, "--scale", scale, "--frames", "1", "-o", "p.glb",
+            ],
+        );
+        assert_eq!(code, 0, "{err}");
+        assert_eq!(
+            err.lines().nth(1),
+            Some(format!("warning: plane_30x30: {message}").as_str()),
+            "{err}"
+        );
+    }
+    // The 1 m plane itself, and at 2 cm, say nothing.
+    for scale in ["1", "0.02"] {
+        let (code, _, err) = run(
+            dir.path(),
+            &[
+                "cloth", &plane, "--scale", scale, "--frames", "1", "-o", "p.glb",
+            ],
+        );
+        assert_eq!((code, err.lines().count()), (0, 1), "{err}");
+    }
+}

@@ -676,9 +676,11 @@ fn build_strokes(
 /// # Errors
 /// [`Error::InvalidOption`] for inconsistent options; load errors for `--rig`, `--points`,
 /// `--svg`; [`Error::UnknownJoint`] / [`Error::JointNotBelow`] for a bad `--chain`; write
-/// errors. Frames that do not converge are reported, not errors.
+/// errors, an output that cannot be written checked first ([`super::outputs::check_writable`]).
+/// Frames that do not converge are reported, not errors.
 pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<IkReport> {
     let t0 = Instant::now();
+    super::outputs::check_writable(&super::outputs::ik_outputs(job))?;
     crate::spec::positive(Param::Fps, job.fps)?;
     crate::spec::positive(Param::Tolerance, job.tolerance)?;
     if job.max_iterations == 0 {

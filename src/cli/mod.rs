@@ -57,8 +57,10 @@ pub struct Outcome {
     pub name: String,
     /// Main output file.
     pub output: PathBuf,
-    /// Frames baked.
+    /// Frames written.
     pub frames: usize,
+    /// Frames simulated: more than written for a bake on a character (blend-in and warm-up).
+    pub frames_simulated: usize,
     /// Wall time, seconds.
     pub seconds: f64,
     /// Bytes written (report excluded).
@@ -131,6 +133,8 @@ pub fn run_job(
     vocabulary: scenebake::param::Vocabulary<'_>,
 ) -> Result<Outcome, JobError> {
     let start = std::time::Instant::now();
+    // Every file the job writes (its report too) is checked before the bake, not after it.
+    job.check_outputs().map_err(JobError::Bake)?;
     if let Job::Cloth(cloth) = job {
         if let Ok(Some(w)) = scenebake::bake::cloth::output_size_warning(cloth) {
             bar.suspend(|| eprintln!("warning: {name}: {}", w.render(vocabulary)));
@@ -154,7 +158,8 @@ pub fn run_job(
         kind: job.kind(),
         name: name.to_owned(),
         output: job.output().to_path_buf(),
-        frames: report.frames(),
+        frames: report.frames_written(),
+        frames_simulated: report.frames(),
         seconds: start.elapsed().as_secs_f64(),
         bytes: files.iter().map(|(_, b)| b).sum(),
         files,
@@ -202,8 +207,20 @@ pub fn print_warnings(o: &Outcome, vocabulary: scenebake::param::Vocabulary<'_>)
 pub fn summary_line(o: &Outcome) -> String {
     let extra = match &o.report {
         Report::Cloth(r) => {
+            // A bake on a character simulates frames it does not write: say which.
+            let simulated = match &r.character {
+                _ if o.frames_simulated == o.frames => String::new(),
+                Some(c) => format!(
+                    "{} simulated: {} blending in, {} warming up, {} written; ",
+                    o.frames_simulated,
+                    c.blend_frames,
+                    c.first_written_frame.saturating_sub(c.blend_frames),
+                    o.frames
+                ),
+                None => format!("{} simulated, {} written; ", o.frames_simulated, o.frames),
+            };
             let mut extra = format!(
-                " ({} particles, {} springs, {} pinned; {:.2} ms/frame; {} of {} frames within \
+                " ({simulated}{} particles, {} springs, {} pinned; {:.2} ms/frame; {} of {} frames within \
                  tolerance {})",
                 r.particles,
                 r.springs,

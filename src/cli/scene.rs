@@ -12,7 +12,9 @@ use std::sync::Mutex;
 use anyhow::{anyhow, bail};
 use clap::Args;
 use indicatif::MultiProgress;
+use scenebake::bake::outputs::{check_writable, OutputFile};
 use scenebake::scene::{Job, Scene, SceneJob};
+use scenebake::Param;
 
 use super::{print_warnings, progress, run_job, summary_line, write_report, JobError, Outcome};
 
@@ -92,6 +94,21 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
             .filter(|(k, _)| k % n == i - 1)
             .map(|(_, j)| j)
             .collect();
+    }
+    // Every file of every job to run, and the run's own report, can be written: checked before
+    // the first job starts rather than when a later one ends.
+    for job in &selected {
+        job.job.check_outputs().map_err(|e| {
+            anyhow!("{e}").context(format!(
+                "{}: job `{}` ({})",
+                args.scene.display(),
+                job.name,
+                job.job.kind()
+            ))
+        })?;
+    }
+    if let Some(path) = &args.report {
+        check_writable(&[OutputFile::new(Param::Report, path)]).map_err(super::cli_error)?;
     }
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let workers = match args.jobs {

@@ -47,6 +47,7 @@ pub fn load_obj(path: &Path, options: &ObjOptions) -> Result<Mesh> {
 struct Face {
     corners: Vec<(u32, Option<u32>)>,
     groups: Vec<String>,
+    object: Option<String>,
 }
 
 /// Parses OBJ text; `path` is only used in messages.
@@ -114,7 +115,11 @@ pub fn parse_obj(text: &str, path: &Path, options: &ObjOptions) -> Result<Mesh> 
                 if let Some(o) = &current_object {
                     groups.push(o.clone());
                 }
-                faces.push(Face { corners, groups });
+                faces.push(Face {
+                    corners,
+                    groups,
+                    object: current_object.clone(),
+                });
             }
             "g" => {
                 current_groups = words.map(str::to_owned).collect();
@@ -138,6 +143,14 @@ pub fn parse_obj(text: &str, path: &Path, options: &ObjOptions) -> Result<Mesh> 
         }
     }
 
+    // Positions used by a face of the file, before an object is picked: those of the other
+    // objects are left out by choice, not unused.
+    let mut used_in_file = vec![false; positions.len()];
+    for f in &faces {
+        for &(p, _) in &f.corners {
+            used_in_file[p as usize] = true;
+        }
+    }
     if let Some(object) = &options.object {
         faces.retain(|f| f.groups.iter().any(|g| g == object));
         if faces.is_empty() {
@@ -164,10 +177,24 @@ pub fn parse_obj(text: &str, path: &Path, options: &ObjOptions) -> Result<Mesh> 
             "no faces: a cloth needs triangles or polygons (`f` lines)",
         ));
     }
-    build_mesh(path, &positions, &uvs, &faces)
+    let mut mesh = build_mesh(path, &positions, &uvs, &faces, &used_in_file)?;
+    for f in &faces {
+        if let Some(o) = &f.object {
+            if !mesh.objects.contains(o) {
+                mesh.objects.push(o.clone());
+            }
+        }
+    }
+    Ok(mesh)
 }
 
-fn build_mesh(path: &Path, positions: &[DVec3], uvs: &[[f32; 2]], faces: &[Face]) -> Result<Mesh> {
+fn build_mesh(
+    path: &Path,
+    positions: &[DVec3],
+    uvs: &[[f32; 2]],
+    faces: &[Face],
+    used_in_file: &[bool],
+) -> Result<Mesh> {
     // Particles: used positions in file order.
     let mut used = vec![false; positions.len()];
     for f in faces {
@@ -187,11 +214,16 @@ fn build_mesh(path: &Path, positions: &[DVec3], uvs: &[[f32; 2]], faces: &[Face]
             mesh.file_index.push(i as u32);
         }
     }
-    let unused = positions.len() - mesh.positions.len();
+    // Positions no face of the file uses (those of objects not picked are not reported).
+    let unused = (0..positions.len())
+        .filter(|&i| !used[i] && !used_in_file[i])
+        .count();
     if unused > 0 {
-        mesh.warnings.push(format!(
-            "{unused} positions are used by no face and were left out"
-        ));
+        mesh.warnings.push(if unused == 1 {
+            "1 position is used by no face and was left out".to_owned()
+        } else {
+            format!("{unused} positions are used by no face and were left out")
+        });
     }
 
     let mut render_index: HashMap<(u32, Option<u32>), u32> = HashMap::new();

@@ -3,11 +3,14 @@
 //! written into the character's document ([`crate::export::character`]).
 
 use std::sync::Arc;
+
+use glam::DVec3;
 use std::time::Instant;
 
 use super::{
-    check_export_options, encode_point_caches, prepare_cloth, quality_report, report, CacheReport,
-    CharacterReport, ClothJob, ClothReport, Exported, PreparedCloth, Switch,
+    check_export_options, encode_point_caches, length_words, prepare_cloth, quality_report, report,
+    scaled_words, CacheReport, CharacterReport, ClothJob, ClothReport, Exported, PreparedCloth,
+    Switch,
 };
 use crate::cloth::collide::Collider;
 use crate::cloth::drive::CharacterDrive;
@@ -18,6 +21,7 @@ use crate::export::character::{encode_character_gltf, CharacterOptions};
 use crate::export::morph::encode_morph_gltf;
 use crate::export::{MorphOptions, RenderFrames, Written};
 use crate::io::rig::RigDocument;
+use crate::mesh::Mesh;
 use crate::param::Param;
 use crate::spec::positive;
 use crate::text;
@@ -92,7 +96,18 @@ pub fn bake_on_character(
     let rig_warnings = doc.warnings.clone();
     let clip = doc.clip(job.animation.as_deref().unwrap_or("#0"), Param::Animation)?;
     let skeleton = doc.skeleton()?;
-    let bodies = exclude_bodies(&doc, doc.body_meshes()?, &job.body_exclude)?;
+    let all_bodies = doc.body_meshes()?;
+    let character_diagonal = {
+        let world = skeleton.world_at(None, 0.0);
+        let points: Vec<DVec3> = all_bodies
+            .iter()
+            .flat_map(|m| m.deform(&world))
+            .map(|p| p * rig_scale)
+            .collect();
+        let (lo, hi) = crate::mesh::bounds(&points);
+        (hi - lo).length()
+    };
+    let bodies = exclude_bodies(&doc, all_bodies, &job.body_exclude)?;
     let cycle = clip.duration();
     let fps = positive(Param::Fps, job.fps.unwrap_or(super::defaults::FPS))?;
     // Whole frames per loop, so every loop starts on a frame: the bake's rate is adjusted to
@@ -109,6 +124,12 @@ pub fn bake_on_character(
         ..job.clone()
     };
     let mut prepared = prepare_cloth(&sized)?;
+    check_units(
+        &prepared.model.mesh,
+        character_diagonal,
+        job.scale,
+        rig_scale,
+    )?;
     let mut drive = CharacterDrive::new(
         skeleton,
         clip.clone(),
@@ -254,6 +275,51 @@ pub fn bake_on_character(
     out.warnings
         .extend(rig_warnings.into_iter().map(|w| text!(w)));
     Ok(out)
+}
+
+/// The ratios of the garment's size to the character's (bounding-box diagonals) taken as the
+/// same units. A garment is rarely larger than its wearer: a cape is about 0.3 of the Fox, a
+/// dress 0.9 of the mannequin, so that cape in centimetres on the metre-scale Fox is 28 (above
+/// 10), in millimetres 280; a metre-scale garment on a character in centimetres is below 1/30.
+pub const SAME_UNITS: (f64, f64) = (1.0 / 30.0, 10.0);
+
+/// A garment whose size against the character's is outside [`SAME_UNITS`]: an error suggesting
+/// the `scale` (or `rig_scale`) by the power of ten that brings the ratio nearest the middle of
+/// the range.
+fn check_units(garment: &Mesh, character_diagonal: f64, scale: f64, rig_scale: f64) -> Result<()> {
+    let (lo, hi) = garment.bounds();
+    let diagonal = (hi - lo).length();
+    if !(diagonal > 0.0 && character_diagonal > 0.0) {
+        return Ok(());
+    }
+    let ratio = diagonal / character_diagonal;
+    let (min, max) = SAME_UNITS;
+    if (min..=max).contains(&ratio) {
+        return Ok(());
+    }
+    let middle = (min * max).sqrt();
+    let power = (middle / ratio).log10().round() as i32;
+    let size = if ratio > 1.0 {
+        format!("{ratio:.0} times the size of")
+    } else {
+        format!("1/{:.0} of the size of", 1.0 / ratio)
+    };
+    Err(Error::param_value(
+        Param::Scale,
+        text!(
+            format!(
+                "{scale}: the garment ({} across) is {size} the character ({} across, with ",
+                length_words(diagonal),
+                length_words(character_diagonal)
+            ),
+            Param::RigScale,
+            format!(" {rig_scale}): are they in different units? try "),
+            Param::Scale,
+            format!(" {} for the garment, or ", scaled_words(scale, power)),
+            Param::RigScale,
+            format!(" {} for the character", scaled_words(rig_scale, -power))
+        ),
+    ))
 }
 
 /// The body meshes less those `exclude` names (a mesh name, or a node as `NAME`, `#N` or

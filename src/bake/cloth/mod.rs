@@ -206,6 +206,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
 
     // Set where the body takes the fabric model (a surface file without --stiffness).
     let (mut bending, mut uses_material) = (Vec::new(), false);
+    let mut merged_objects = None;
     let (mesh, springs, mut pinned): (Mesh, SpringSet, Vec<bool>) = match &source {
         ClothSource::LabCloth { resolution } => {
             if let Some(option) = [
@@ -260,6 +261,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         ClothSource::File(path) => {
             let mut mesh = load_body(path, job)?;
             place(&mut mesh, job)?;
+            merged_objects = merged_objects_warning(path, &mesh, job);
             if !mesh.tets.is_empty() {
                 if let Some(option) = material_option {
                     return Err(Error::param_value(
@@ -311,6 +313,12 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         bend: springs.count(SpringKind::Bend),
     };
     let mut model = ClothModel::new(mesh, springs, mass, pinned)?.with_bending(bending)?;
+    model.warnings.extend(merged_objects);
+    if matches!(source, ClothSource::File(_)) {
+        model
+            .warnings
+            .extend(implausible_size_warning(&model.mesh, job.scale));
+    }
     model.warnings.extend(size_warning);
     let colliders = prepare_colliders(job, &model)?;
     let wind = prepare_wind(job)?;
@@ -345,6 +353,90 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         material,
         counts,
     })
+}
+
+/// The smallest and largest diagonal (of the bounding box, metres) a cloth may plausibly have.
+pub const PLAUSIBLE_DIAGONAL: (f64, f64) = (0.01, 100.0);
+
+/// A length in metres in the unit that reads best: `1.7 m`, `35.2 cm`, `0.40 mm`.
+pub fn length_words(metres: f64) -> String {
+    if metres >= 1.0 {
+        format!("{metres:.2} m")
+    } else if metres >= 0.01 {
+        format!("{:.1} cm", metres * 1e2)
+    } else {
+        format!("{:.2} mm", metres * 1e3)
+    }
+}
+
+/// `value` times 10^`power`, written with at most six significant digits: `0.01`, `1000`,
+/// `0.0254` (a scale to suggest).
+pub fn scaled_words(value: f64, power: i32) -> String {
+    let ten = 10f64.powi(power.abs());
+    let x = if power >= 0 { value * ten } else { value / ten };
+    if !(x.is_finite() && x != 0.0) {
+        return x.to_string();
+    }
+    let decimals = (5 - x.abs().log10().floor() as i32).clamp(0, 17) as usize;
+    let text = format!("{x:.decimals$}");
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        text
+    }
+}
+
+/// A warning for a cloth whose bounding-box diagonal is outside [`PLAUSIBLE_DIAGONAL`]: most often
+/// an input in centimetres or millimetres read as metres.
+fn implausible_size_warning(mesh: &Mesh, scale: f64) -> Option<Text> {
+    let (lo, hi) = mesh.bounds();
+    let diagonal = (hi - lo).length();
+    let (min, max) = PLAUSIBLE_DIAGONAL;
+    if diagonal <= 0.0 || (min..=max).contains(&diagonal) {
+        return None;
+    }
+    // The power of ten that brings the diagonal nearest 1 m.
+    let power = -diagonal.log10().round() as i32;
+    Some(text!(
+        format!(
+            "the cloth is {} across (its bounding box's diagonal{}), not a plausible size in \
+             metres ({min} to {max} m); if the input is in other units, ",
+            length_words(diagonal),
+            if scale == 1.0 {
+                String::new()
+            } else {
+                format!(", scaled by {scale}")
+            },
+        ),
+        Param::Scale,
+        format!(
+            " {} makes it {}",
+            scaled_words(scale, power),
+            length_words(diagonal * 10f64.powi(power))
+        )
+    ))
+}
+
+/// "FILE holds 2 objects (Plane, Torus), merged into one body; `object` NAME bakes one of them",
+/// for an OBJ of several objects read whole (a scene exported with every object selected).
+fn merged_objects_warning(path: &Path, mesh: &Mesh, job: &ClothJob) -> Option<Text> {
+    const LISTED: usize = 6;
+    let n = mesh.objects.len();
+    if job.object.is_some() || n < 2 {
+        return None;
+    }
+    let mut names = mesh.objects[..n.min(LISTED)].join(", ");
+    if n > LISTED {
+        names += &format!(" and {} more", n - LISTED);
+    }
+    Some(text!(
+        format!(
+            "{} holds {n} objects ({names}), merged into one body; ",
+            path.display()
+        ),
+        Param::Object,
+        " NAME bakes one of them"
+    ))
 }
 
 /// `--material` with the `--stretch`, `--bend`, `--compression`, `--jam-strain` and `--density`
@@ -732,9 +824,11 @@ pub fn simulate_cloth(
 /// Runs a whole bake: prepare, simulate (calling `progress(frame, frames)`), export, report.
 ///
 /// # Errors
-/// As [`prepare_cloth`]; [`Error::Diverged`] when the simulation blows up (nothing is written);
+/// An output that cannot be written ([`super::outputs::check_writable`]) before anything else;
+/// as [`prepare_cloth`]; [`Error::Diverged`] when the simulation blows up (nothing is written);
 /// write errors.
 pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Result<ClothReport> {
+    super::outputs::check_writable(&super::outputs::cloth_outputs(job))?;
     if job.body.is_some() {
         return sequence::bake_on_sequence(job, progress);
     }
