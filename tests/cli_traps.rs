@@ -1161,7 +1161,7 @@ fn a_mistyped_scene_vector_names_the_key_and_the_form() {
 
 /// Fox's Walk: its duration read here with the gltf crate.
 fn fox_walk_seconds() -> f64 {
-    let (doc, buffers, _) = gltf::import(crate_path("meshes/Fox.glb")).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(crate_path("meshes/Fox.glb")).unwrap();
     let walk = doc.animations().find(|a| a.name() == Some("Walk")).unwrap();
     let times: Vec<f32> = walk
         .channels()
@@ -1237,7 +1237,7 @@ fn a_character_bake_says_frames_simulated_and_written() {
         )) && first.contains(&format!("; {total} of {total} frames within tolerance")),
         "{err}"
     );
-    let (doc, buffers, _) = gltf::import(dir.path().join("cape.glb")).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(dir.path().join("cape.glb")).unwrap();
     let keys = doc
         .animations()
         .flat_map(|a| a.channels().collect::<Vec<_>>())

@@ -2,6 +2,8 @@
 //! top rises under a sheet pushes the sheet up, the written glTF holds the body's motion (read
 //! back with the `gltf` crate), and bad sequences fail before anything is simulated.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
@@ -109,7 +111,7 @@ struct Played {
 }
 
 impl Played {
-    fn read(doc: &gltf::Document, buffers: &[gltf::buffer::Data], name: &str) -> Played {
+    fn read(doc: &gltf::Document, buffers: &[common::gltf_read::Data], name: &str) -> Played {
         let node = doc.nodes().find(|n| n.name() == Some(name)).unwrap();
         let prim = node.mesh().unwrap().primitives().next().unwrap();
         let reader = prim.reader(|b| Some(&buffers[b.index()]));
@@ -177,7 +179,7 @@ fn a_rising_box_lifts_the_sheet_and_the_file_plays_the_box() {
         report.residuals
     );
 
-    let (doc, buffers, _) = gltf::import(&out).unwrap();
+    let (doc, buffers, _) = common::gltf_read::import(&out).unwrap();
     let sheet = Played::read(&doc, &buffers, "sheet");
     let boxed = Played::read(&doc, &buffers, "sheet_body");
     // Both keyed on the same written frames.

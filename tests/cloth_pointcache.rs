@@ -382,13 +382,13 @@ fn bad_cache_paths_are_refused_before_the_bake_and_write_nothing() {
     run(
         &["--pc2", &under_file],
         "out.glb",
-        &["--pc2", &under_file, "is a file, not a folder"],
+        &["--pc2", &under_file, "is a file, not a directory"],
     );
     let folder = d("a_folder");
     run(
         &["--mdd", &folder],
         "out.glb",
-        &["--mdd", "is a folder: give the cache's file name"],
+        &["--mdd", "is a directory, not a file"],
     );
     let out = d("out.glb");
     run(
@@ -423,6 +423,6 @@ fn bad_cache_paths_are_refused_before_the_bake_and_write_nothing() {
             &under_file,
         ],
         "rig.glb",
-        &["--pc2", "is a file, not a folder"],
+        &["--pc2", "is a file, not a directory"],
     );
 }

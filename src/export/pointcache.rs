@@ -143,9 +143,8 @@ pub fn encode_point_cache(
     })
 }
 
-/// Checks before a bake that a point cache can be written at `path` (the option `param`
-/// names it): a file name, not a folder, in a folder that exists and takes files or can be
-/// created.
+/// Checks before a bake that `path` (the option `param` names it) names a file. Whether it can
+/// be written is checked with every other output of the job (`crate::bake::outputs`).
 ///
 /// # Errors
 /// [`Error::Param`] naming `param` and the path.
@@ -154,39 +153,10 @@ pub fn check_point_cache_path(param: Param, path: &Path) -> Result<()> {
     if path.as_os_str().is_empty() {
         return refuse("an empty path: give the cache's file name".into());
     }
-    if path.is_dir() || path.file_name().is_none() {
+    if path.file_name().is_none() {
         return refuse(format!(
-            "{} is a folder: give the cache's file name",
+            "{} names a directory: give the cache's file name",
             path.display()
-        ));
-    }
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    // The nearest folder that exists: the file's own, or the one its folders will be made in.
-    let mut existing = parent.as_path();
-    while !existing.exists() {
-        match existing.parent() {
-            Some(p) if !p.as_os_str().is_empty() => existing = p,
-            _ => {
-                existing = Path::new(".");
-                break;
-            }
-        }
-    }
-    if !existing.is_dir() {
-        return refuse(format!(
-            "{}: {} is a file, not a folder",
-            path.display(),
-            existing.display()
-        ));
-    }
-    if let Err(e) = tempfile::tempfile_in(existing) {
-        return refuse(format!(
-            "{}: cannot write into {} ({e})",
-            path.display(),
-            existing.display()
         ));
     }
     Ok(())
