@@ -2,19 +2,16 @@
 //! body collider ([`crate::cloth::drive`]), loops are warmed up and cut, and the garment is
 //! written into the character's document ([`crate::export::character`]).
 
-use std::sync::Arc;
-
 use glam::DVec3;
 use std::time::Instant;
 
 use super::{
     check_export_options, encode_point_caches, length_words, prepare_cloth, quality_report, report,
-    scaled_words, CacheReport, CharacterReport, ClothJob, ClothReport, Exported, PreparedCloth,
-    Switch,
+    scaled_words, simulate_on_body, CacheReport, CharacterReport, ClothJob, ClothReport, Exported,
+    PreparedCloth, Switch,
 };
-use crate::cloth::collide::Collider;
 use crate::cloth::drive::CharacterDrive;
-use crate::cloth::{make_solver, simulate_driven, Driven, FrameCache, SolverKind};
+use crate::cloth::{FrameCache, SolverKind};
 use crate::data::animation::SkinnedMesh;
 use crate::error::{Error, Result};
 use crate::export::character::{encode_character_gltf, CharacterOptions};
@@ -141,7 +138,7 @@ pub fn bake_on_character(
         rig_scale,
         blend_frames as f64 / fps,
     )?;
-    let PreparedCloth { model, params, .. } = &mut prepared;
+    let model = &prepared.model;
     let pinned: Vec<u32> = (0..model.particle_count() as u32)
         .filter(|&i| model.pinned[i as usize])
         .collect();
@@ -158,26 +155,13 @@ pub fn bake_on_character(
             (pinned.len(), 0)
         }
     };
-    let mut body_triangles = 0;
-    let body_shape = match (job.body_collider, drive.rest_body()?) {
-        (Switch::On, Some(body)) => {
-            body_triangles = body.triangles().len();
-            params.colliders.shapes.push(Collider::Mesh(Arc::new(body)));
-            Some(params.colliders.shapes.len() - 1)
-        }
-        _ => None,
-    };
-    let mut solver = make_solver(model, params)?;
-    let sim = simulate_driven(
-        model,
-        solver.as_mut(),
-        params,
-        Some(Driven {
-            drive: &drive,
-            body_shape,
-        }),
+    let (sim, body_triangles) = simulate_on_body(
+        &mut prepared,
+        &drive,
+        job.body_collider == Switch::On,
         &mut |f| progress(f, total),
     )?;
+    let PreparedCloth { model, .. } = &prepared;
 
     // The written loops: frames first_written..=total, as frames 0.. of the output.
     let mut cache = FrameCache::new(sim.cache.particle_count());

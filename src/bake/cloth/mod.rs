@@ -336,6 +336,13 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         threads: job
             .threads
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
+        self_contact: match (job.solver, job.self_contact) {
+            (SolverKind::Newton, Switch::On) => Some(match job.self_thickness {
+                Some(t) => positive(Param::SelfThickness, t)?,
+                None => colliders.thickness,
+            }),
+            _ => None,
+        },
         colliders,
         wind,
     };
@@ -879,6 +886,39 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
     ))
 }
 
+/// Simulates `prepared` driven by `drive` (a character or a body sequence): its pins ride the
+/// drive and, when `collide`, its body joins the colliders as a moving mesh. Returns the
+/// simulation and the body's triangle count (0 when it does not collide).
+pub(crate) fn simulate_on_body(
+    prepared: &mut PreparedCloth,
+    drive: &dyn crate::cloth::drive::Drive,
+    collide: bool,
+    progress: &mut dyn FnMut(usize),
+) -> Result<(Simulation, usize)> {
+    let PreparedCloth { model, params, .. } = prepared;
+    let mut body_triangles = 0;
+    let body_shape = match (collide, drive.rest_body()?) {
+        (true, Some(body)) => {
+            body_triangles = body.triangles().len();
+            params
+                .colliders
+                .shapes
+                .push(Collider::Mesh(std::sync::Arc::new(body)));
+            Some(params.colliders.shapes.len() - 1)
+        }
+        _ => None,
+    };
+    let mut solver = make_solver(model, params)?;
+    let sim = crate::cloth::simulate_driven(
+        model,
+        solver.as_mut(),
+        params,
+        Some(crate::cloth::Driven { drive, body_shape }),
+        progress,
+    )?;
+    Ok((sim, body_triangles))
+}
+
 /// The quality section of written frames `first..` of `sim` (frame `first` is the output's
 /// frame 0; it is flagged only when simulated, `first > 0`).
 pub(crate) fn quality_report(sim: &Simulation, first: usize, strain_limit: f64) -> QualityReport {
@@ -1020,16 +1060,6 @@ fn export(
     check_cache(&job.output, &model.mesh, cache)?;
     let frames = RenderFrames::new(&model.mesh, cache);
     let (morph, basis) = match job.basis {
-        Some(_) if body.is_some() => {
-            return Err(Error::param_value(
-                Param::Basis,
-                text!(
-                    "not with ",
-                    Param::Body,
-                    ": a bake on a body sequence writes a morph target per frame"
-                ),
-            ))
-        }
         Some(size) => {
             let basis = BasisOptions {
                 size,

@@ -8,16 +8,14 @@
 //! may shorten it). The body is used as it is; `--translate`, `--scale` and `--up` place the
 //! garment.
 
-use std::sync::Arc;
 use std::time::Instant;
 
 use super::{
-    collider_meshes, export, prepare_cloth, quality_report, report, BodyReport, ClothJob,
-    ClothReport, PreparedCloth, Switch,
+    collider_meshes, export, prepare_cloth, quality_report, report, simulate_on_body, BodyReport,
+    ClothJob, ClothReport, PreparedCloth, Switch,
 };
-use crate::cloth::collide::Collider;
-use crate::cloth::drive::{Drive, SequenceDrive};
-use crate::cloth::{make_solver, simulate_driven, Driven, FrameCache, SolverKind};
+use crate::cloth::drive::SequenceDrive;
+use crate::cloth::{FrameCache, SolverKind};
 use crate::error::{Error, Result};
 use crate::export::{AnimatedBody, MorphOptions, RenderFrames};
 use crate::io::sequence::load_obj_sequence;
@@ -121,24 +119,10 @@ pub fn bake_on_sequence(
     let PreparedCloth { model, params, .. } = &mut prepared;
     let statics = collider_meshes(model, &params.colliders);
     let collides = job.body_collider == Switch::On;
-    let body_shape = match (collides, drive.rest_body()?) {
-        (true, Some(body)) => {
-            params.colliders.shapes.push(Collider::Mesh(Arc::new(body)));
-            Some(params.colliders.shapes.len() - 1)
-        }
-        _ => None,
-    };
-    let mut solver = make_solver(model, params)?;
-    let sim = simulate_driven(
-        model,
-        solver.as_mut(),
-        params,
-        Some(Driven {
-            drive: &drive,
-            body_shape,
-        }),
-        &mut |f| progress(f, frames),
-    )?;
+    let (sim, _) = simulate_on_body(&mut prepared, &drive, collides, &mut |f| {
+        progress(f, frames)
+    })?;
+    let PreparedCloth { model, .. } = &prepared;
 
     let export_start = Instant::now();
     let sequence = drive.sequence();
