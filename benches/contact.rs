@@ -76,6 +76,7 @@ fn bench_scene(c: &mut Criterion, scene: &Scene) {
     let with_table = &scene.prepared.params;
     let free = BakeParams {
         colliders: Default::default(),
+        self_contact: None,
         ..with_table.clone()
     };
     for (label, params) in [("free", &free), ("box", with_table)] {

@@ -138,6 +138,10 @@ params! {
     Friction => "friction",
     /// Newton's contact model.
     Contact => "contact",
+    /// The cloth's contact with itself.
+    SelfContact => "self_contact",
+    /// The cloth's layer against itself.
+    SelfThickness => "self_thickness",
     /// Wind velocity.
     Wind => "wind",
     /// Aerodynamic drag coefficient.

@@ -21,6 +21,7 @@ fn params(solver: SolverKind, damping: f64, gravity: DVec3) -> BakeParams {
         sweeps: newton::DEFAULT_SWEEPS,
         threads: 1,
         colliders: Default::default(),
+        self_contact: None,
         wind: None,
     }
 }

@@ -960,6 +960,7 @@ impl StepSolver for FastSolver {
             residual,
             converged: residual <= self.tolerance || self.tolerance == 0.0,
             contacts,
+            self_contacts: 0,
         })
     }
 }

@@ -18,6 +18,8 @@ pub mod model;
 pub mod newton;
 pub mod pins;
 pub mod preset;
+pub mod proximity;
+pub mod self_contact;
 pub mod smooth;
 mod split;
 pub mod springs;
@@ -49,6 +51,9 @@ pub struct StepStats {
     pub converged: bool,
     /// Particles touching a collider at the end of the step (the most over a frame's substeps).
     pub contacts: usize,
+    /// Cloth–cloth pairs (vertex–triangle, edge–edge) inside their self-contact layer at the
+    /// end of the step (the most over a frame's substeps; 0 without self-contact).
+    pub self_contacts: usize,
 }
 
 /// A time integrator advancing the free particles of a [`ReducedSystem`] by one step.
@@ -112,6 +117,9 @@ pub struct BakeParams {
     pub threads: usize,
     /// What the cloth collides with (none when empty).
     pub colliders: Colliders,
+    /// The cloth's contact with itself: its layer in metres (pairs of its primitives stay more
+    /// than half of it apart; [`self_contact::SelfContact`]), `None` for none. Newton only.
+    pub self_contact: Option<f64>,
     /// Aerodynamic forces, when any.
     pub wind: Option<Wind>,
 }
@@ -164,16 +172,20 @@ pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn St
                 .with_tolerance(params.tolerance)
                 .with_colliders(colliders),
         ),
-        SolverKind::Newton => Box::new(
-            NewtonSolver::new(
-                ReducedSystem::with_coupling(model, step, BendingFactor::default().coupling())?,
-                params.tolerance,
-                params.max_newton,
-            )?
-            .with_colliders(colliders)
-            .with_sweeps(params.sweeps)
-            .with_threads(params.threads),
-        ),
+        SolverKind::Newton => {
+            let sys =
+                ReducedSystem::with_coupling(model, step, BendingFactor::default().coupling())?;
+            let self_contact = params
+                .self_contact
+                .map(|layer| self_contact::SelfContact::new(model, &sys, layer));
+            Box::new(
+                NewtonSolver::new(sys, params.tolerance, params.max_newton)?
+                    .with_colliders(colliders)
+                    .with_self_contact(self_contact)
+                    .with_sweeps(params.sweeps)
+                    .with_threads(params.threads),
+            )
+        }
     })
 }
 
@@ -242,6 +254,7 @@ pub fn simulate_driven(
             residual: 0.0,
             converged: true,
             contacts: 0,
+            self_contacts: 0,
         };
         for substep in 0..params.substeps {
             if let Some(air) = &mut air {
@@ -273,6 +286,7 @@ pub fn simulate_driven(
             stats.residual = stats.residual.max(s.residual);
             stats.converged &= s.converged;
             stats.contacts = stats.contacts.max(s.contacts);
+            stats.self_contacts = stats.self_contacts.max(s.self_contacts);
         }
         guard.check(frame, &x, solver.system())?;
         solver.system().scatter(&x, &mut all);

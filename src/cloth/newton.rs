@@ -86,6 +86,7 @@ use glam::DVec3;
 use super::collide::contact::NewtonContact;
 use super::collide::{Collider, Colliders};
 use super::factor::analyse_upper;
+use super::self_contact::SelfContact;
 use super::smooth::{Smoother, SweepScratch};
 use super::split::SplitCholesky;
 use super::system::{BendCoupling, ReducedSystem, OPPOSITE, PINNED};
@@ -317,6 +318,8 @@ pub struct NewtonSolver {
     /// solved on two threads at once ([`SplitCholesky`]), when the directions come from
     /// conjugate gradients and the factor's elimination tree splits.
     split_factor: Option<SplitCholesky>,
+    /// The cloth's contact with itself, when on ([`NewtonSolver::with_self_contact`]).
+    self_contact: Option<SelfContact>,
 }
 
 impl NewtonSolver {
@@ -458,6 +461,7 @@ impl NewtonSolver {
         let single = if split_factor.is_some() { 0 } else { 1 };
         Ok(NewtonSolver {
             split_factor,
+            self_contact: None,
             row_idx32,
             values32: vec![0.0; single * row_idx.len()],
             l_values32: vec![0.0; single * symbolic.len_val()],
@@ -533,6 +537,35 @@ impl NewtonSolver {
         self
     }
 
+    /// Keeps the cloth from passing through itself ([`SelfContact`]; `None`: off).
+    pub fn with_self_contact(mut self, self_contact: Option<SelfContact>) -> Self {
+        self.self_contact = self_contact;
+        self
+    }
+
+    /// The cloth's contact with itself, when on.
+    pub fn self_contact(&self) -> Option<&SelfContact> {
+        self.self_contact.as_ref()
+    }
+
+    /// Whether self-contact pairs are in their bands at the assembled iterate (their couplings
+    /// are then in the Hessian's products only, so directions come from conjugate gradients).
+    fn self_coupled(&self) -> bool {
+        self.self_contact
+            .as_ref()
+            .is_some_and(|s| s.active_count() > 0)
+    }
+
+    /// Where the cloth touches itself, directions must not make it pass through itself: the
+    /// largest fraction of the path from `x` to `to` it can move (1: all of it; see
+    /// [`SelfContact::prepare_path`]). 1 without self-contact.
+    fn self_path(&mut self, x: &[DVec3], to: &[DVec3]) -> f64 {
+        match &mut self.self_contact {
+            Some(s) => s.prepare_path(x, to),
+            None => 1.0,
+        }
+    }
+
     /// Whether the line search tries twice a full Newton step ([`LONGER_STEP`]) and keeps it
     /// when it lowers g further (on by default). Either way a step stops on its own residual,
     /// so this changes how many iterations a step takes, not what it converges to.
@@ -603,6 +636,16 @@ impl NewtonSolver {
             self.threads >= 2,
         );
         self.passes[0] += 1;
+        if self.self_contact.is_some() {
+            // The sweeps do not see the cloth's contact with itself: their move is cut where it
+            // would pass through.
+            let t = self.self_path(x, &trial);
+            if t < 1.0 {
+                for (p, x) in trial.iter_mut().zip(x.iter()) {
+                    *p = *x + (*p - *x) * t;
+                }
+            }
+        }
         if self.energy(&trial) < g {
             x.copy_from_slice(&trial);
             self.passes[1] += 1;
@@ -615,19 +658,29 @@ impl NewtonSolver {
 
     /// The objective g(x) plus the friction potential, joules.
     fn energy(&self, x: &[DVec3]) -> f64 {
-        self.sys.objective(x, &self.y) + self.contact.as_ref().map_or(0.0, |c| c.energy(x))
+        self.sys.objective(x, &self.y)
+            + self.contact.as_ref().map_or(0.0, |c| c.energy(x))
+            + self
+                .self_contact
+                .as_ref()
+                .filter(|s| s.ready())
+                .map_or(0.0, |s| s.energy(x))
     }
 
     /// Writes the line search's trial x + α·Δx into `trial` (projected out of the colliders and
     /// settled onto them, unless contact is a barrier, whose energy refuses such trials itself)
     /// and returns the objective there.
-    fn energy_along(&self, x: &[DVec3], alpha: f64, trial: &mut [DVec3]) -> f64 {
+    fn energy_along(&mut self, x: &[DVec3], alpha: f64, trial: &mut [DVec3]) -> f64 {
         for ((t, x), d) in trial.iter_mut().zip(x).zip(self.dx.chunks_exact(3)) {
             *t = *x + DVec3::from_slice(d) * alpha;
         }
         if !self.contact.as_ref().is_some_and(NewtonContact::is_barrier) {
             self.project(trial);
             self.settle(trial);
+            // The projection left the line: its path is checked on its own.
+            if self.contact.is_some() && self.self_path(x, trial) < 1.0 {
+                return f64::INFINITY;
+            }
         }
         self.energy(trial)
     }
@@ -893,6 +946,10 @@ impl NewtonSolver {
             let diag = &self.diag;
             contact.add_derivatives(x, grad, |i, he| add_diag(values, &diag[i], &he));
         }
+        if let Some(s) = &mut self.self_contact {
+            let diag = &self.diag;
+            s.add_derivatives(x, grad, |i, he| add_diag(values, &diag[i], &he));
+        }
     }
 
     /// Factors the assembled Hessian: in single precision while that has not failed in this
@@ -968,7 +1025,7 @@ impl NewtonSolver {
     /// [`Error::Factorisation`] when that double-precision factor fails.
     fn solve_direction(&mut self) -> Result<()> {
         let dim = self.dx.len();
-        if self.split {
+        if self.split || self.self_coupled() {
             if self.held_factor == Precision::Single {
                 if self.cg_direction() {
                     self.directions[0] += 1;
@@ -1144,6 +1201,12 @@ impl NewtonSolver {
             Some(n) => u - n * n.dot(u),
             None => u,
         };
+        if let Some(s) = &self.self_contact {
+            s.add_product(v, out, filter);
+        }
+        if !self.split {
+            return;
+        }
         for (stencil, w) in bends.v.iter().zip(&bends.w) {
             let Some((c, d)) = opposite_split(stencil) else {
                 continue;
@@ -1164,6 +1227,54 @@ impl NewtonSolver {
                 out[3 * i + 2] -= u.z;
             }
         }
+    }
+
+    /// Makes the step's start `x` feasible: out of the barrier colliders' bands, and reached
+    /// from the step's first positions without the cloth passing through itself (the move is
+    /// cut where it would; the colliders are asked again after a cut, a few rounds).
+    ///
+    /// # Errors
+    /// [`Error::Diverged`] when particles stay behind a collider's surface.
+    fn feasible_start(&mut self, x: &mut [DVec3]) -> Result<()> {
+        const ROUNDS: usize = 3;
+        let x0 = std::mem::take(&mut self.x0);
+        let mut behind = 0;
+        for round in 0..=ROUNDS {
+            if let Some(c) = self.contact.as_mut().filter(|c| c.is_barrier()) {
+                behind = c.make_feasible(x);
+            }
+            let t = self.self_path(&x0, x);
+            if t == 1.0 {
+                break;
+            }
+            if round == ROUNDS {
+                // The colliders win: the start stays out of them, and the cloth's pairs take it
+                // as it is (a move out of a collider the cloth started in may pass through
+                // itself; the frame's crossing count says so).
+                if let Some(s) = &mut self.self_contact {
+                    s.accept(x);
+                }
+                break;
+            }
+            for (p, a) in x.iter_mut().zip(&x0) {
+                *p = *a + (*p - *a) * t;
+            }
+        }
+        self.x0 = x0;
+        if let Some(c) = self.contact.as_mut().filter(|c| c.is_barrier()) {
+            if behind > 0 {
+                return Err(Error::Diverged {
+                    frame: 0,
+                    reason: format!(
+                        "{behind} particles start time step {} behind a collider's surface, where \
+                         the barrier cannot push them out (try the constraint contact model)",
+                        self.steps + 1
+                    ),
+                });
+            }
+            c.set_iterate(x);
+        }
+        Ok(())
     }
 
     fn non_finite(&self, what: &str, iteration: usize) -> Error {
@@ -1293,6 +1404,9 @@ impl StepSolver for NewtonSolver {
 
     fn drive(&mut self, pins: &[DVec3], shapes: Vec<(usize, Collider)>) -> Result<()> {
         self.sys.move_pins(pins);
+        if let Some(s) = &mut self.self_contact {
+            s.move_pins(pins);
+        }
         if let Some(c) = &mut self.contact {
             for (j, shape) in shapes {
                 c.set_shape(j, shape);
@@ -1309,6 +1423,9 @@ impl StepSolver for NewtonSolver {
         self.x0.copy_from_slice(x);
         if let Some(c) = &mut self.contact {
             c.begin_step(x);
+        }
+        if let Some(s) = &mut self.self_contact {
+            s.begin_step(x);
         }
         self.sys.predict(x, v, &mut self.y);
         // Start from y, or from x₀ + h·v₀ (no gravity: near pins, y stretches the springs by
@@ -1340,20 +1457,7 @@ impl StepSolver for NewtonSolver {
             }
         }
         self.trial = trial;
-        if let Some(c) = self.contact.as_mut().filter(|c| c.is_barrier()) {
-            let behind = c.make_feasible(x);
-            if behind > 0 {
-                return Err(Error::Diverged {
-                    frame: 0,
-                    reason: format!(
-                        "{behind} particles start time step {} behind a collider's surface, where \
-                         the barrier cannot push them out (try the constraint contact model)",
-                        self.steps + 1
-                    ),
-                });
-            }
-            c.set_iterate(x);
-        }
+        self.feasible_start(x)?;
         if let Some(hist) = &mut self.history {
             hist.clear();
         }
@@ -1404,7 +1508,19 @@ impl StepSolver for NewtonSolver {
                 return Err(self.non_finite("objective or direction", iterations));
             }
             let slack = ROUNDOFF * g0.abs();
-            let mut alpha = 1.0;
+            // With self-contact the search stays on the part of the line the cloth can move
+            // along without passing through itself.
+            let mut reach = f64::INFINITY;
+            if self.self_contact.is_some() {
+                let span = if self.try_longer { LONGER_STEP } else { 1.0 };
+                let mut far = std::mem::take(&mut self.longer);
+                for ((f, x), d) in far.iter_mut().zip(x.iter()).zip(self.dx.chunks_exact(3)) {
+                    *f = *x + DVec3::from_slice(d) * span;
+                }
+                reach = span * self.self_path(x, &far);
+                self.longer = far;
+            }
+            let mut alpha = reach.min(1.0);
             let mut g = f64::INFINITY;
             let mut trial = std::mem::take(&mut self.trial);
             for _ in 0..MAX_HALVINGS {
@@ -1414,7 +1530,7 @@ impl StepSolver for NewtonSolver {
                 }
                 alpha *= 0.5;
             }
-            if self.try_longer && alpha == 1.0 && g.is_finite() {
+            if self.try_longer && alpha == 1.0 && reach >= LONGER_STEP && g.is_finite() {
                 // The full step was accepted: twice its length is tried too.
                 let mut longer = std::mem::take(&mut self.longer);
                 // Near the solution g's changes are roundoff, and a longer step kept on noise
@@ -1436,6 +1552,12 @@ impl StepSolver for NewtonSolver {
                 if let Some(c) = self.contact.as_mut().filter(|c| c.is_barrier()) {
                     c.set_iterate(x);
                 }
+                if self.contact.as_ref().is_some_and(|c| !c.is_barrier()) {
+                    // The projected trials each checked their own path: the pairs around the
+                    // new iterate are found again.
+                    let at: &[DVec3] = x;
+                    self.self_path(at, at);
+                }
             }
             self.trial = trial;
             if g != f64::INFINITY {
@@ -1446,6 +1568,14 @@ impl StepSolver for NewtonSolver {
             *v = (*x - *x0) / h;
         }
         self.steps += 1;
+        let self_contacts = match &mut self.self_contact {
+            Some(s) => {
+                let active = s.active_count();
+                s.end_step(x);
+                active
+            }
+            None => 0,
+        };
         let contacts = match &mut self.contact {
             Some(c) => c.end_step(x, &self.grad),
             None => 0,
@@ -1455,6 +1585,7 @@ impl StepSolver for NewtonSolver {
             residual,
             converged,
             contacts,
+            self_contacts,
         })
     }
 }

@@ -8,11 +8,13 @@
 //! - [`geometry`]: analytic signed distances to planes, spheres and boxes, and a brute-force
 //!   point–triangle distance with a winding-number inside test for meshes;
 //! - [`gltf_read`]: a glTF's buffers read by the specification (the `gltf` crate parses);
+//! - [`crossing`]: crossing triangle pairs by an exact test of every pair;
 //! - [`cli`]: running the binary, signalling it, and listing what it left in a folder;
 //! - [`strain`]: the largest stretch and compression of a bake's edges, from its frames.
 #![allow(dead_code, reason = "each test file uses a subset")]
 
 pub mod cli;
+pub mod crossing;
 pub mod fk;
 pub mod geometry;
 pub mod gltf_read;

@@ -1227,6 +1227,10 @@ fn report(
         vat,
         point_caches,
         environment: environment_report(params, frames),
+        self_contact: params.self_contact.map(|thickness| SelfContactReport {
+            thickness,
+            pairs: frames.iter().map(|f| f.self_contacts).collect(),
+        }),
         character: None,
         body: None,
         warnings: {

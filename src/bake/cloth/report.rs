@@ -84,6 +84,8 @@ pub struct ClothReport {
     pub point_caches: Vec<PointCacheReport>,
     /// Colliders, contacts and wind, when any.
     pub environment: Option<EnvironmentReport>,
+    /// The cloth's contact with itself, when on (`--self-contact`).
+    pub self_contact: Option<SelfContactReport>,
     /// The character that drove the bake, with `--rig`.
     pub character: Option<CharacterReport>,
     /// The mesh sequence that moved as a body, with `--body`.
@@ -241,6 +243,15 @@ pub struct EnvironmentReport {
     pub contacts: Vec<usize>,
     /// The wind, when any.
     pub wind: Option<WindReport>,
+}
+
+/// The cloth's contact with itself (vertex–triangle and edge–edge pairs).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SelfContactReport {
+    /// The layer pairs are kept apart by, m (pairs that start closer keep their distance).
+    pub thickness: f64,
+    /// Pairs inside their layer at the end of each frame (the most over its substeps).
+    pub pairs: Vec<usize>,
 }
 
 /// The wind of a bake, as used.

@@ -256,13 +256,19 @@ const G0: f64 = 9.80665;
 /// its top): β(u) = −(u − 1)² ln u, with β′ and β″. β(1) = β′(1) = β″(1) = 0 (the barrier starts
 /// smoothly), β → ∞ as u → 0.
 #[inline]
-fn barrier_shape(u: f64) -> (f64, f64, f64) {
+pub(crate) fn barrier_shape(u: f64) -> (f64, f64, f64) {
     let (v, l) = (u - 1.0, u.ln());
     (
         -v * v * l,
         -(2.0 * v * l + v * v / u),
         -(2.0 * l + 4.0 * v / u - v * v / (u * u)),
     )
+}
+
+/// The barrier's strength c for a particle of mass `m` (kg): c·mᵢ·g₀ with c such that the force
+/// at the band's middle is [`BARRIER_HOLD`] weights, N. Self-contact uses it per pair.
+pub(crate) fn barrier_strength(m: f64) -> f64 {
+    BARRIER_HOLD / -barrier_shape(0.5).1 * m * G0
 }
 
 /// The barrier band of a particle with layer ℓ: its bottom (where the energy is infinite) and
@@ -282,10 +288,7 @@ impl NewtonContact {
     pub fn new(colliders: Colliders, sys: &ReducedSystem) -> Self {
         let barrier = match colliders.model {
             ContactModel::Constraint => Vec::new(),
-            ContactModel::Barrier => {
-                let c = BARRIER_HOLD / -barrier_shape(0.5).1;
-                sys.mass.iter().map(|m| c * m * G0).collect()
-            }
+            ContactModel::Barrier => sys.mass.iter().map(|m| barrier_strength(*m)).collect(),
         };
         NewtonContact {
             colliders,

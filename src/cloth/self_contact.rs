@@ -1,0 +1,698 @@
+//! Self-contact: the cloth's vertex–triangle and edge–edge pairs kept apart by a barrier energy,
+//! and every motion of an iterate bounded by continuous collision detection, so that a step
+//! never makes the cloth pass through itself.
+//!
+//! **The energy.** Each pair (a vertex and a triangle not holding it, or two edges sharing no
+//! vertex) at distance d has a band (ℓ/2, 3ℓ/2), ℓ its layer (the self-contact thickness): zero
+//! energy above the band, c·ℓ·β(u) inside it with u = (d − ℓ/2)/ℓ and β the colliders' barrier
+//! shape ([`super::collide::contact`]: β(u) = −(u − 1)² ln u), infinite at its bottom. The
+//! strength c is the colliders' (ten weights of the pair's mean particle at the band's middle).
+//! The separation is Σₖ wₖxₖ over the pair's four vertices ([`super::proximity`]), so the
+//! gradient is c·β′(u)·wₖ·n at vertex k (n the unit separation) and the Hessian's blocks are
+//! c·β″(u)/ℓ · wᵢwⱼ · n nᵀ (the distance's curvature term, negative for a barrier pushing
+//! apart, left out as incremental potential contact's projection does: every block pair is
+//! positive semi-definite). Only diagonal blocks enter the factored matrix; the pairs'
+//! couplings enter Newton's products by the Hessian ([`SelfContact::add_product`]), so the
+//! sparsity pattern stays fixed while the pairs change every iteration.
+//!
+//! **Pairs that start close.** A pair found inside its band when a bake starts (folds of a
+//! draped garment, slivers of an irregular mesh) gets a thinner layer, d/1.5, so the input is at
+//! rest; one found at or below its band's bottom at the start of a later step (pins jump between
+//! steps) gets the same. Thinned layers grow back as their pairs move apart
+//! ([`SelfContact::end_step`]). A pair touching (d within roundoff of 0: an input that already
+//! crosses itself, coincident vertices, a vertex in a neighbour's plane) is left out while it
+//! touches: a bake never adds a crossing but does not untangle one. A step whose start a
+//! collider pushed out of itself is taken as it is ([`SelfContact::accept`]).
+//!
+//! **Broad phase.** A uniform grid over the pairs' swept boxes from one iterate to the farthest
+//! point a search may try, each box grown by half the band's top, so every pair that can come
+//! within its band on the way is a candidate ([`SelfContact::prepare_path`]). Triangles and
+//! edges are binned once per path and each vertex and edge looks up the cells it overlaps.
+//!
+//! **Continuous collision detection.** Additive CCD (Li, Kaufman and Jiang 2021, "Codimensional
+//! incremental potential contact", §4): along a linear path, the distance between two primitives
+//! changes no faster than l_p, the largest displacement of a vertex of each less their mean,
+//! summed over the two; so from a distance d the pair cannot reach the target distance before
+//! (d − target)/l_p of the path, and advancing by a fraction of that, re-measuring, gives a
+//! conservative time of impact. The target keeps a tenth of the starting gap above the band's
+//! bottom, so the barrier stays finite on every point a search tries.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::collide::contact::{barrier_shape, barrier_strength};
+use super::model::ClothModel;
+use super::proximity::{point_triangle, segment_segment, Separation};
+use super::system::{ReducedSystem, PINNED};
+
+/// The fraction of its starting gap above the band's bottom a pair keeps along a path
+/// (see the module documentation).
+const CCD_GAP: f64 = 0.1;
+
+/// Pairs closer than this fraction of the layer touch (roundoff of a distance that is 0).
+const TOUCHING: f64 = 1e-6;
+
+/// How much of the distance a pair may cover safely each additive-CCD round advances by.
+const CCD_ADVANCE: f64 = 0.9;
+
+/// Additive-CCD rounds before a pair's time of impact is taken as where they stopped (still
+/// conservative).
+const CCD_ROUNDS: usize = 64;
+
+/// The longest path [`SelfContact::prepare_path`] looks along at once, in the grid's cells at
+/// rest (a longer one is cut).
+const MAX_PATH_CELLS: f64 = 64.0;
+
+/// Cells a path may sweep a primitive across: past it, the path's grid has larger cells.
+const SWEPT_CELLS: f64 = 4.0;
+
+/// A candidate pair of primitives.
+#[derive(Debug, Clone, Copy)]
+struct Pair {
+    /// Which pair (see [`pair_key`]).
+    key: u64,
+    /// Its four vertices (model indices): a vertex and a triangle's three, or two edges' two.
+    v: [u32; 4],
+    /// True for two edges.
+    edges: bool,
+    /// The pair's layer ℓ, m (0: left out while touching).
+    layer: f64,
+    /// The barrier's strength c, N.
+    strength: f64,
+}
+
+/// A pair inside its band at the assembled iterate: what the Hessian's products need.
+#[derive(Debug, Clone, Copy)]
+struct Active {
+    /// Solver index of each vertex ([`PINNED`] where pinned).
+    free: [u32; 4],
+    weights: [f64; 4],
+    normal: DVec3,
+    /// c·β″(u)/ℓ, N/m.
+    stiffness: f64,
+}
+
+/// Self-contact of one cloth (see the module documentation).
+#[derive(Debug, Clone)]
+pub struct SelfContact {
+    /// The layer ℓ of pairs that did not start close, m.
+    layer: f64,
+    triangles: Vec<[u32; 3]>,
+    edges: Vec<[u32; 2]>,
+    /// Solver index of each model particle ([`PINNED`] where pinned).
+    slot: Vec<u32>,
+    /// Model-ordered positions; the pinned entries are where the pins are.
+    fixed: Vec<DVec3>,
+    /// Per model particle: the barrier's strength for a pair of such particles, N.
+    strength: Vec<f64>,
+    /// The grid's cell size at rest (paths that sweep farther get larger ones), m.
+    cell: f64,
+    /// Layers thinned from [`SelfContact::layer`] (see the module documentation), by pair key.
+    thinned: HashMap<u64, f64>,
+    /// Whether the first step has begun (the input's close pairs are thinned to rest).
+    started: bool,
+    /// Candidates of the last prepared path.
+    pairs: Vec<Pair>,
+    /// Whether `pairs` covers the iterate the solver holds (false between steps).
+    ready: bool,
+    /// Pairs in their band at the last assembled iterate.
+    active: Vec<Active>,
+    /// Scratch: per model particle, its two path ends; binned primitives; visit stamps.
+    ends: Vec<(DVec3, DVec3)>,
+    bins: Vec<(u64, u32)>,
+    grid: HashGrid,
+    stamp: Vec<u32>,
+    /// The end of a cut path.
+    cut_end: Vec<DVec3>,
+    /// The most pairs in their bands at once, since the solver was made.
+    peak_active: usize,
+}
+
+/// A pair's key: a vertex and a triangle, or two edges (the lower index first).
+#[inline]
+fn pair_key(edges: bool, a: u32, b: u32) -> u64 {
+    (u64::from(edges) << 63) | (u64::from(a) << 32) | u64::from(b)
+}
+
+/// Binned items by cell key, in a table of buckets twice as many as the entries (a counting
+/// sort by hashed key): a cell's items are in its bucket, with those of the few cells that
+/// share it (queries check boxes anyway).
+#[derive(Debug, Clone, Default)]
+struct HashGrid {
+    start: Vec<u32>,
+    next: Vec<u32>,
+    items: Vec<u32>,
+    bits: u32,
+}
+
+impl HashGrid {
+    #[inline]
+    fn slot(&self, key: u64) -> usize {
+        (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> (64 - self.bits)) as usize
+    }
+
+    fn build(&mut self, entries: &[(u64, u32)]) {
+        self.bits = (2 * entries.len().max(1))
+            .next_power_of_two()
+            .trailing_zeros()
+            .max(1);
+        let size = 1usize << self.bits;
+        self.start.clear();
+        self.start.resize(size + 1, 0);
+        for &(k, _) in entries {
+            let h = self.slot(k);
+            self.start[h + 1] += 1;
+        }
+        for i in 0..size {
+            self.start[i + 1] += self.start[i];
+        }
+        self.items.clear();
+        self.items.resize(entries.len(), 0);
+        self.next.clear();
+        self.next.extend_from_slice(&self.start[..size]);
+        for &(k, item) in entries {
+            let h = self.slot(k);
+            self.items[self.next[h] as usize] = item;
+            self.next[h] += 1;
+        }
+    }
+
+    #[inline]
+    fn bucket(&self, key: u64) -> &[u32] {
+        let h = self.slot(key);
+        &self.items[self.start[h] as usize..self.start[h + 1] as usize]
+    }
+}
+
+/// An axis-aligned box.
+#[derive(Debug, Clone, Copy)]
+struct Aabb {
+    lo: DVec3,
+    hi: DVec3,
+}
+
+impl Aabb {
+    fn of(points: &[(DVec3, DVec3)], grow: f64) -> Self {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for (a, b) in points {
+            lo = lo.min(a.min(*b));
+            hi = hi.max(a.max(*b));
+        }
+        Aabb {
+            lo: lo - grow,
+            hi: hi + grow,
+        }
+    }
+
+    fn overlaps(&self, other: &Aabb) -> bool {
+        self.lo.cmple(other.hi).all() && other.lo.cmple(self.hi).all()
+    }
+}
+
+impl SelfContact {
+    /// Self-contact of `model`'s triangles at layer `layer` (m), for the solver of `sys`.
+    pub fn new(model: &ClothModel, sys: &ReducedSystem, layer: f64) -> Self {
+        let n = model.particle_count();
+        let mut slot = vec![PINNED; n];
+        for (i, &p) in sys.particle_of.iter().enumerate() {
+            slot[p as usize] = i as u32;
+        }
+        let triangles = model.mesh.triangles.clone();
+        let mut edges: Vec<[u32; 2]> = triangles
+            .iter()
+            .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+            .map(|[a, b]| [a.min(b), a.max(b)])
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        let x = model.positions();
+        let mean_edge = if edges.is_empty() {
+            layer
+        } else {
+            edges
+                .iter()
+                .map(|e| (x[e[0] as usize] - x[e[1] as usize]).length())
+                .sum::<f64>()
+                / edges.len() as f64
+        };
+        let strength = model.mass.iter().map(|m| barrier_strength(*m)).collect();
+        SelfContact {
+            layer,
+            triangles,
+            edges,
+            slot,
+            fixed: x.to_vec(),
+            strength,
+            cell: mean_edge.max(1.5 * layer),
+            thinned: HashMap::new(),
+            started: false,
+            pairs: Vec::new(),
+            ready: false,
+            active: Vec::new(),
+            ends: vec![(DVec3::ZERO, DVec3::ZERO); n],
+            bins: Vec::new(),
+            grid: HashGrid::default(),
+            stamp: Vec::new(),
+            cut_end: Vec::new(),
+            peak_active: 0,
+        }
+    }
+
+    /// The layer of pairs that did not start close, m.
+    pub fn layer(&self) -> f64 {
+        self.layer
+    }
+
+    /// The most pairs inside their bands at one iterate so far.
+    pub fn peak_active(&self) -> usize {
+        self.peak_active
+    }
+
+    /// Pairs whose layer is thinned now (they started close, or touch).
+    pub fn thinned(&self) -> usize {
+        self.thinned.len()
+    }
+
+    /// Moves the pinned particles to their entries of `all` (model order, m).
+    pub fn move_pins(&mut self, all: &[DVec3]) {
+        for (f, (s, a)) in self.fixed.iter_mut().zip(self.slot.iter().zip(all)) {
+            if *s == PINNED {
+                *f = *a;
+            }
+        }
+    }
+
+    #[inline]
+    fn at(&self, x: &[DVec3], v: u32) -> DVec3 {
+        match self.slot[v as usize] {
+            PINNED => self.fixed[v as usize],
+            s => x[s as usize],
+        }
+    }
+
+    #[inline]
+    fn separation(&self, pair: &Pair, p: [DVec3; 4]) -> Separation {
+        if pair.edges {
+            segment_segment(p[0], p[1], p[2], p[3])
+        } else {
+            point_triangle(p[0], p[1], p[2], p[3])
+        }
+    }
+
+    #[inline]
+    fn positions(&self, pair: &Pair, x: &[DVec3]) -> [DVec3; 4] {
+        pair.v.map(|v| self.at(x, v))
+    }
+
+    /// Starts a step from `x0` (solver order): finds the pairs around it and thins the layers
+    /// of those too close for their barrier (see the module documentation).
+    pub fn begin_step(&mut self, x0: &[DVec3]) {
+        let first = !self.started;
+        self.started = true;
+        self.thin(x0, if first { 1.5 } else { 0.5 });
+        // The start of the step is where the solver's search begins: it checks its own path.
+        self.ready = false;
+    }
+
+    /// Takes `x` (solver order) as the iterate although it was not reached along a checked path
+    /// (a collider pushed particles out of it): pairs at or below their band's bottom there get
+    /// the layer they rest at, as at a step's start, so the energy is finite at `x`.
+    pub fn accept(&mut self, x: &[DVec3]) {
+        self.thin(x, 0.5);
+    }
+
+    /// Finds the pairs around `x` and thins the layer of each closer than `below` layers.
+    fn thin(&mut self, x: &[DVec3], below: f64) {
+        self.prepare_path(x, x);
+        for k in 0..self.pairs.len() {
+            let pair = self.pairs[k];
+            if pair.layer == 0.0 {
+                continue;
+            }
+            let d = self.separation(&pair, self.positions(&pair, x)).distance();
+            if d <= below * pair.layer {
+                let layer = self.rest_layer(d, 0.0);
+                self.thinned.insert(pair.key, layer);
+                self.pairs[k].layer = layer;
+            }
+        }
+    }
+
+    /// Ends a step at `x`: thinned layers grow back towards the layer as their pairs move apart,
+    /// and pairs that left the neighbourhood are forgotten.
+    pub fn end_step(&mut self, x: &[DVec3]) {
+        self.prepare_path(x, x);
+        let mut kept = HashMap::with_capacity(self.thinned.len());
+        for pair in &self.pairs {
+            let Some(&layer) = self.thinned.get(&pair.key) else {
+                continue;
+            };
+            let d = self.separation(pair, self.positions(pair, x)).distance();
+            let grown = self.rest_layer(d, layer);
+            if grown < self.layer {
+                kept.insert(pair.key, grown);
+            }
+        }
+        self.thinned = kept;
+        self.ready = false;
+    }
+
+    /// The layer of a pair at distance `d` that rests there, never below `layer`: d/1.5, or 0
+    /// (touching: left out) where d is within roundoff of 0 (a vertex in the plane of a
+    /// neighbouring triangle, coincident vertices).
+    fn rest_layer(&self, d: f64, layer: f64) -> f64 {
+        if d > TOUCHING * self.layer {
+            layer.max(d / 1.5)
+        } else {
+            layer
+        }
+    }
+
+    /// Whether the candidates cover the solver's iterate (between
+    /// [`SelfContact::begin_step`] and [`SelfContact::end_step`]).
+    pub fn ready(&self) -> bool {
+        self.ready
+    }
+
+    /// Finds the candidate pairs of the path from `a` to `b` (solver order) and returns the
+    /// fraction of it the cloth can move without any pair reaching its target distance (1: the
+    /// whole path). [`SelfContact::energy`] is then exact anywhere on the path.
+    pub fn prepare_path(&mut self, a: &[DVec3], b: &[DVec3]) -> f64 {
+        // A path longer than a few cells (a wild first direction) is cut first, so the swept
+        // boxes stay small.
+        let longest = a
+            .iter()
+            .zip(b)
+            .map(|(p, q)| (*q - *p).length_squared())
+            .fold(0.0, f64::max)
+            .sqrt();
+        let limit = MAX_PATH_CELLS * self.cell;
+        let cell = self.cell.max(longest.min(limit) / SWEPT_CELLS);
+        if longest <= limit {
+            return self.prepare_segment(a, b, cell);
+        }
+        let cut = limit / longest;
+        let mut end = std::mem::take(&mut self.cut_end);
+        end.clear();
+        end.extend(a.iter().zip(b).map(|(p, q)| *p + (*q - *p) * cut));
+        let toi = self.prepare_segment(a, &end, cell);
+        self.cut_end = end;
+        cut * toi
+    }
+
+    /// [`SelfContact::prepare_path`] without the cut.
+    fn prepare_segment(&mut self, a: &[DVec3], b: &[DVec3], cell: f64) -> f64 {
+        self.find_pairs(a, b, cell);
+        self.ready = true;
+        let mut toi: f64 = 1.0;
+        let mut pairs = std::mem::take(&mut self.pairs);
+        // A pair whose distance cannot fall into its band on the path is dropped: a pair's
+        // distance changes no faster than its relative motion.
+        pairs.retain(|pair| {
+            if pair.layer == 0.0 {
+                return true;
+            }
+            let (near, t) = self.pair_toi(pair, a, b, toi);
+            toi = toi.min(t);
+            near
+        });
+        self.pairs = pairs;
+        toi
+    }
+
+    /// Whether `pair` can come within its band on the path from `a` to `b`, and its
+    /// conservative time of impact there (1 when none), looking no farther than `limit`.
+    fn pair_toi(&self, pair: &Pair, a: &[DVec3], b: &[DVec3], limit: f64) -> (bool, f64) {
+        let p0 = self.positions(pair, a);
+        let p1 = self.positions(pair, b);
+        let d: [DVec3; 4] = std::array::from_fn(|k| p1[k] - p0[k]);
+        let mean = (d[0] + d[1] + d[2] + d[3]) * 0.25;
+        let len = |k: usize| (d[k] - mean).length();
+        let lp = if pair.edges {
+            len(0).max(len(1)) + len(2).max(len(3))
+        } else {
+            len(0) + len(1).max(len(2)).max(len(3))
+        };
+        let lo = 0.5 * pair.layer;
+        let d0 = self.separation(pair, p0).distance();
+        if d0 - lp >= 3.0 * lo {
+            return (false, 1.0);
+        }
+        let target = lo + CCD_GAP * (d0 - lo);
+        if lp * limit <= d0 - target {
+            return (true, 1.0);
+        }
+        let mut t = 0.0;
+        let mut dist = d0;
+        for _ in 0..CCD_ROUNDS {
+            let dt = CCD_ADVANCE * (dist - target) / lp;
+            if t + dt >= limit {
+                return (true, 1.0);
+            }
+            t += dt;
+            let p: [DVec3; 4] = std::array::from_fn(|k| p0[k] + d[k] * t);
+            dist = self.separation(pair, p).distance();
+            if dist - target <= 1e-3 * (d0 - target) {
+                break;
+            }
+        }
+        (true, t)
+    }
+
+    /// Bins primitives' grown swept boxes into the grid and collects the candidate pairs.
+    fn find_pairs(&mut self, a: &[DVec3], b: &[DVec3], cell: f64) {
+        for (v, e) in self.ends.iter_mut().enumerate() {
+            *e = match self.slot[v] {
+                PINNED => (self.fixed[v], self.fixed[v]),
+                s => (a[s as usize], b[s as usize]),
+            };
+        }
+        let grow = 0.75 * self.layer;
+        let ends = &self.ends;
+        let tri_box = |t: &[u32; 3]| Aabb::of(&t.map(|v| ends[v as usize]), grow);
+        let edge_box = |e: &[u32; 2]| Aabb::of(&e.map(|v| ends[v as usize]), grow);
+        let range = |b: &Aabb| {
+            let lo = (b.lo / cell).floor().as_ivec3();
+            let hi = (b.hi / cell).floor().as_ivec3();
+            (lo, hi)
+        };
+        let key = |x: i32, y: i32, z: i32| -> u64 {
+            let m = |c: i32| u64::from(c as u32 & 0x1f_ffff);
+            (m(x) << 42) | (m(y) << 21) | m(z)
+        };
+        let mut pairs = std::mem::take(&mut self.pairs);
+        pairs.clear();
+        let mut bins = std::mem::take(&mut self.bins);
+        let mut stamp = std::mem::take(&mut self.stamp);
+        // Vertex against triangle.
+        bins.clear();
+        for (t, tri) in self.triangles.iter().enumerate() {
+            let (lo, hi) = range(&tri_box(tri));
+            for x in lo.x..=hi.x {
+                for y in lo.y..=hi.y {
+                    for z in lo.z..=hi.z {
+                        bins.push((key(x, y, z), t as u32));
+                    }
+                }
+            }
+        }
+        let mut grid = std::mem::take(&mut self.grid);
+        grid.build(&bins);
+        stamp.clear();
+        stamp.resize(self.triangles.len().max(self.edges.len()), 0);
+        let mut now = 0u32;
+        for v in 0..self.slot.len() as u32 {
+            let vb = Aabb::of(&[ends[v as usize]], grow);
+            let (lo, hi) = range(&vb);
+            now += 1;
+            for x in lo.x..=hi.x {
+                for y in lo.y..=hi.y {
+                    for z in lo.z..=hi.z {
+                        let k = key(x, y, z);
+                        for &t in grid.bucket(k) {
+                            if stamp[t as usize] == now {
+                                continue;
+                            }
+                            stamp[t as usize] = now;
+                            let tri = self.triangles[t as usize];
+                            if tri.contains(&v) || !tri_box(&tri).overlaps(&vb) {
+                                continue;
+                            }
+                            // Pinned to pinned pairs never move: nothing to keep apart.
+                            if self.slot[v as usize] == PINNED
+                                && tri.iter().all(|&u| self.slot[u as usize] == PINNED)
+                            {
+                                continue;
+                            }
+                            pairs.push(self.pair(false, v, t, [v, tri[0], tri[1], tri[2]]));
+                        }
+                    }
+                }
+            }
+        }
+        // Edge against edge.
+        bins.clear();
+        for (e, edge) in self.edges.iter().enumerate() {
+            let (lo, hi) = range(&edge_box(edge));
+            for x in lo.x..=hi.x {
+                for y in lo.y..=hi.y {
+                    for z in lo.z..=hi.z {
+                        bins.push((key(x, y, z), e as u32));
+                    }
+                }
+            }
+        }
+        grid.build(&bins);
+        for (e, edge) in self.edges.iter().enumerate() {
+            let eb = edge_box(edge);
+            let (lo, hi) = range(&eb);
+            now += 1;
+            for x in lo.x..=hi.x {
+                for y in lo.y..=hi.y {
+                    for z in lo.z..=hi.z {
+                        let k = key(x, y, z);
+                        for &f in grid.bucket(k) {
+                            if f as usize <= e || stamp[f as usize] == now {
+                                continue;
+                            }
+                            stamp[f as usize] = now;
+                            let other = self.edges[f as usize];
+                            if other.contains(&edge[0])
+                                || other.contains(&edge[1])
+                                || !edge_box(&other).overlaps(&eb)
+                            {
+                                continue;
+                            }
+                            let v = [edge[0], edge[1], other[0], other[1]];
+                            if v.iter().all(|&u| self.slot[u as usize] == PINNED) {
+                                continue;
+                            }
+                            pairs.push(self.pair(true, e as u32, f, v));
+                        }
+                    }
+                }
+            }
+        }
+        self.pairs = pairs;
+        self.bins = bins;
+        self.grid = grid;
+        self.stamp = stamp;
+    }
+
+    fn pair(&self, edges: bool, a: u32, b: u32, v: [u32; 4]) -> Pair {
+        let key = pair_key(edges, a, b);
+        let strength = v.iter().map(|&u| self.strength[u as usize]).sum::<f64>() * 0.25;
+        Pair {
+            key,
+            v,
+            edges,
+            layer: self.thinned.get(&key).copied().unwrap_or(self.layer),
+            strength,
+        }
+    }
+
+    /// The barrier energy at `x` (solver order) over the candidates, J: infinite where a pair is
+    /// at or below its band's bottom. Exact on the last prepared path.
+    pub fn energy(&self, x: &[DVec3]) -> f64 {
+        let mut total = 0.0;
+        for pair in &self.pairs {
+            if pair.layer == 0.0 {
+                continue;
+            }
+            let d = self.separation(pair, self.positions(pair, x)).distance();
+            let (lo, width) = (0.5 * pair.layer, pair.layer);
+            if d >= lo + width {
+                continue;
+            }
+            let u = (d - lo) / width;
+            if u <= 0.0 {
+                return f64::INFINITY;
+            }
+            total += pair.strength * width * barrier_shape(u).0;
+        }
+        total
+    }
+
+    /// Adds the barrier's gradient at `x` to `grad` (solver order), passes each free vertex's
+    /// diagonal Hessian block to `block`, and keeps the pairs in their bands for
+    /// [`SelfContact::add_product`]. Returns how many pairs are in their bands.
+    pub fn add_derivatives(
+        &mut self,
+        x: &[DVec3],
+        grad: &mut [DVec3],
+        mut block: impl FnMut(usize, [[f64; 3]; 3]),
+    ) -> usize {
+        let mut active = std::mem::take(&mut self.active);
+        active.clear();
+        for pair in &self.pairs {
+            if pair.layer == 0.0 {
+                continue;
+            }
+            let s = self.separation(pair, self.positions(pair, x));
+            let d = s.distance();
+            let (lo, width) = (0.5 * pair.layer, pair.layer);
+            if d >= lo + width || d <= lo {
+                continue;
+            }
+            let (_, d1, d2) = barrier_shape((d - lo) / width);
+            let n = s.vector / d;
+            let force = pair.strength * d1;
+            let stiffness = pair.strength * d2 / width;
+            let free = pair.v.map(|v| self.slot[v as usize]);
+            for k in 0..4 {
+                if free[k] == PINNED {
+                    continue;
+                }
+                let w = s.weights[k];
+                grad[free[k] as usize] += n * (force * w);
+                let c = stiffness * w * w;
+                block(
+                    free[k] as usize,
+                    std::array::from_fn(|r| std::array::from_fn(|col| c * n[r] * n[col])),
+                );
+            }
+            active.push(Active {
+                free,
+                weights: s.weights,
+                normal: n,
+                stiffness,
+            });
+        }
+        self.peak_active = self.peak_active.max(active.len());
+        let count = active.len();
+        self.active = active;
+        count
+    }
+
+    /// Pairs in their bands at the last assembled iterate.
+    pub fn active_count(&self) -> usize {
+        self.active.len()
+    }
+
+    /// out += the off-diagonal blocks of the barrier's Hessian times `v` (3n scalars, solver
+    /// order), each free vertex's vector passed through `filter` on the way in and out (the
+    /// colliders' constraint filter; the identity with the barrier model).
+    pub fn add_product(&self, v: &[f64], out: &mut [f64], filter: impl Fn(usize, DVec3) -> DVec3) {
+        let at = |i: usize| filter(i, DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]));
+        for a in &self.active {
+            // Each vertex's share of the normal motion, w_k n·v_k (0 where pinned).
+            let along: [f64; 4] = std::array::from_fn(|k| match a.free[k] {
+                PINNED => 0.0,
+                i => a.weights[k] * a.normal.dot(at(i as usize)),
+            });
+            let sum: f64 = along.iter().sum();
+            for (k, (&i, &own)) in a.free.iter().zip(&along).enumerate() {
+                if i == PINNED {
+                    continue;
+                }
+                let i = i as usize;
+                let u = filter(i, a.normal * (a.stiffness * a.weights[k] * (sum - own)));
+                out[3 * i] += u.x;
+                out[3 * i + 1] += u.y;
+                out[3 * i + 2] += u.z;
+            }
+        }
+    }
+}
