@@ -26,12 +26,33 @@ impl Separation {
     }
 }
 
+/// The part of a triangle a closest point lies on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Feature {
+    /// The triangle's inside.
+    Face,
+    /// Edge i, joining corners i and (i + 1) mod 3.
+    Edge(u8),
+    /// Corner i.
+    Vertex(u8),
+}
+
 /// Point `p` against triangle `(a, b, c)`: weights `[1, −u, −v, −w]` with `(u, v, w)` the
 /// closest point's barycentric coordinates.
+#[inline]
 pub fn point_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Separation {
-    let done = |u: f64, v: f64, w: f64| Separation {
-        vector: p - (a * u + b * v + c * w),
-        weights: [1.0, -u, -v, -w],
+    point_triangle_feature(p, a, b, c).0
+}
+
+/// [`point_triangle`], and the part of the triangle its closest point lies on (a degenerate,
+/// zero-area triangle's nearest edge).
+pub fn point_triangle_feature(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (Separation, Feature) {
+    let done = |u: f64, v: f64, w: f64, feature: Feature| {
+        let s = Separation {
+            vector: p - (a * u + b * v + c * w),
+            weights: [1.0, -u, -v, -w],
+        };
+        (s, feature)
     };
     let ab = b - a;
     let ac = c - a;
@@ -39,39 +60,39 @@ pub fn point_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Separation {
     let d1 = ab.dot(ap);
     let d2 = ac.dot(ap);
     if d1 <= 0.0 && d2 <= 0.0 {
-        return done(1.0, 0.0, 0.0);
+        return done(1.0, 0.0, 0.0, Feature::Vertex(0));
     }
     let bp = p - b;
     let d3 = ab.dot(bp);
     let d4 = ac.dot(bp);
     if d3 >= 0.0 && d4 <= d3 {
-        return done(0.0, 1.0, 0.0);
+        return done(0.0, 1.0, 0.0, Feature::Vertex(1));
     }
     let vc = d1 * d4 - d3 * d2;
     if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
         let v = fraction(d1, d1 - d3);
-        return done(1.0 - v, v, 0.0);
+        return done(1.0 - v, v, 0.0, Feature::Edge(0));
     }
     let cp = p - c;
     let d5 = ab.dot(cp);
     let d6 = ac.dot(cp);
     if d6 >= 0.0 && d5 <= d6 {
-        return done(0.0, 0.0, 1.0);
+        return done(0.0, 0.0, 1.0, Feature::Vertex(2));
     }
     let vb = d5 * d2 - d1 * d6;
     if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
         let w = fraction(d2, d2 - d6);
-        return done(1.0 - w, 0.0, w);
+        return done(1.0 - w, 0.0, w, Feature::Edge(2));
     }
     let va = d3 * d6 - d5 * d4;
     if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
         let w = fraction(d4 - d3, (d4 - d3) + (d5 - d6));
-        return done(0.0, 1.0 - w, w);
+        return done(0.0, 1.0 - w, w, Feature::Edge(1));
     }
     let denom = va + vb + vc;
     if denom.abs() < f64::MIN_POSITIVE {
         // A degenerate (zero-area) triangle: the nearest of its three edges.
-        let mut best = (f64::INFINITY, [0.0; 3]);
+        let mut best = (f64::INFINITY, [0.0; 3], 0);
         for (x, y, i, j) in [(a, b, 0, 1), (b, c, 1, 2), (c, a, 2, 0)] {
             let s = segment_segment(p, p, x, y);
             let d = s.vector.length_squared();
@@ -79,15 +100,15 @@ pub fn point_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Separation {
                 let mut w = [0.0; 3];
                 w[i] = -s.weights[2];
                 w[j] = -s.weights[3];
-                best = (d, w);
+                best = (d, w, i as u8);
             }
         }
         let [u, v, w] = best.1;
-        return done(u, v, w);
+        return done(u, v, w, Feature::Edge(best.2));
     }
     let v = vb / denom;
     let w = vc / denom;
-    done(1.0 - v - w, v, w)
+    done(1.0 - v - w, v, w, Feature::Face)
 }
 
 /// `num / den` in [0, 1], and 0 where both are 0 (an edge of zero length: both its ends are the
@@ -256,6 +277,25 @@ mod tests {
             let brute = sampled(&[p], &segment_samples(a, b, 2000));
             let d = s.distance();
             assert!(d <= brute + 1e-12 && brute - d < 0.01, "{d} vs {brute}");
+        }
+    }
+
+    #[test]
+    fn the_feature_is_where_the_weights_are() {
+        let mut rng = Rng(0x0f1e_2d3c_4b5a_6978);
+        for _ in 0..500 {
+            let (p, a, b, c) = (rng.vec() * 2.0, rng.vec(), rng.vec(), rng.vec());
+            let (s, feature) = point_triangle_feature(p, a, b, c);
+            let bary = [-s.weights[1], -s.weights[2], -s.weights[3]];
+            let on: Vec<usize> = (0..3).filter(|&k| bary[k] > 1e-12).collect();
+            match feature {
+                Feature::Vertex(i) => assert_eq!(on, vec![i as usize]),
+                Feature::Edge(i) => {
+                    let (i, j) = (i as usize, (i as usize + 1) % 3);
+                    assert!(on.iter().all(|&k| k == i || k == j), "{feature:?} {bary:?}");
+                }
+                Feature::Face => assert!(bary.iter().all(|&w| w > -1e-12), "{bary:?}"),
+            }
         }
     }
 }

@@ -18,6 +18,7 @@ use std::path::Path;
 use glam::DVec3;
 
 use super::SurfacePoint;
+use crate::cloth::proximity::{point_triangle_feature, Feature};
 use crate::error::{ColliderMeshProblem, Error, Result};
 
 /// Triangles per BVH leaf at most.
@@ -98,15 +99,6 @@ struct Node {
     hi: DVec3,
     first: u32,
     count: u32,
-}
-
-/// The part of a triangle a closest point lies on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Feature {
-    Face,
-    /// Edge i joins corners i and (i + 1) mod 3.
-    Edge(u8),
-    Vertex(u8),
 }
 
 /// The closest surface point found by a search.
@@ -545,45 +537,8 @@ fn barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
 }
 
 fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, Feature) {
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(ap);
-    let d2 = ac.dot(ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return (a, Feature::Vertex(0));
-    }
-    let bp = p - b;
-    let d3 = ab.dot(bp);
-    let d4 = ac.dot(bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return (b, Feature::Vertex(1));
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return (a + ab * v, Feature::Edge(0));
-    }
-    let cp = p - c;
-    let d5 = ab.dot(cp);
-    let d6 = ac.dot(cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return (c, Feature::Vertex(2));
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return (a + ac * w, Feature::Edge(2));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return (b + (c - b) * w, Feature::Edge(1));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let v = vb * denom;
-    let w = vc * denom;
-    (a + ab * v + ac * w, Feature::Face)
+    let (s, feature) = point_triangle_feature(p, a, b, c);
+    (p - s.vector, feature)
 }
 
 /// The parameter t ∈ (0, 1) at which segment from → to passes through triangle `tri`, when
