@@ -943,7 +943,7 @@ pub(crate) fn quality_report(sim: &Simulation, first: usize, strain_limit: f64) 
 }
 
 /// The warnings of a quality section: frames past the strain limit, frames with crossings.
-fn quality_warnings(q: &QualityReport) -> Vec<Text> {
+fn quality_warnings(q: &QualityReport, self_contact: bool) -> Vec<Text> {
     let mut out = Vec::new();
     let written = q.max_strain.len();
     if let Some(&worst) = q
@@ -982,14 +982,37 @@ fn quality_warnings(q: &QualityReport) -> Vec<Text> {
         if body > 0 {
             worst.push(format!("{body} with a body at frame {body_at}"));
         }
-        out.push(text!(format!(
+        let head = format!(
             "{} of {written} written frames have crossing triangles (at most {}; frame 0 has {} \
-             and {}); the cloth does not collide with itself: see quality.intersecting_frames",
+             and {}); ",
             q.intersecting_frames.len(),
             worst.join(", "),
             q.self_crossings[0],
             q.body_crossings[0],
-        )));
+        );
+        let tail = ": see quality.intersecting_frames";
+        out.push(if own == 0 {
+            text!(head, "particles, not triangles, are kept off bodies", tail)
+        } else if self_contact {
+            // Self-contact adds no crossing in a step: these were in the input, or made by a
+            // collider pushing the cloth out of itself.
+            text!(
+                head,
+                "with ",
+                Param::SelfContact,
+                " on, the input's crossings are kept and a collider the cloth starts in may push \
+                 it through itself",
+                tail
+            )
+        } else {
+            text!(
+                head,
+                "the cloth does not collide with itself (",
+                Param::SelfContact,
+                " on keeps it off)",
+                tail
+            )
+        });
     }
     out
 }
@@ -1236,7 +1259,7 @@ fn report(
         warnings: {
             let mut w = model.warnings.clone();
             w.extend(convergence_warning(frames, params.tolerance));
-            w.extend(quality_warnings(&quality));
+            w.extend(quality_warnings(&quality, params.self_contact.is_some()));
             w
         },
         quality,
