@@ -78,6 +78,18 @@ impl Mesh {
     }
 }
 
+/// Every distinct edge of `triangles`, its lower index first, sorted.
+pub fn edges(triangles: &[[u32; 3]]) -> Vec<[u32; 2]> {
+    let mut edges: Vec<[u32; 2]> = triangles
+        .iter()
+        .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+        .map(|[a, b]| [a.min(b), a.max(b)])
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    edges
+}
+
 /// Axis-aligned bounds (min, max) of a point set; zeros when empty.
 pub fn bounds(points: &[DVec3]) -> (DVec3, DVec3) {
     if points.is_empty() {

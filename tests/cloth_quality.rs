@@ -56,13 +56,7 @@ fn the_dress_on_its_mannequin_reports_the_crossings_its_file_has() {
     assert_eq!(code, 0, "{err}");
     let r = common::read_json(&report);
     let q = &r["quality"];
-    let list = |k: &str| -> Vec<usize> {
-        q[k].as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v.as_u64().unwrap() as usize)
-            .collect()
-    };
+    let list = |k: &str| common::counts_of(&q[k]);
     let morph = load_morph(&out);
     let tris = weld(&morph.base, &cloth_triangles(&out));
     let (body, body_tris) = mesh_of(&out, "collider_1");

@@ -71,12 +71,7 @@ fn drop_curtain(self_contact: &str) -> (Vec<usize>, Vec<usize>, f32, serde_json:
         .iter()
         .map(|p| p.y)
         .fold(f32::MIN, f32::max);
-    let reported = r["quality"]["self_crossings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_u64().unwrap() as usize)
-        .collect();
+    let reported = common::counts_of(&r["quality"]["self_crossings"]);
     (file, reported, top, r)
 }
 

@@ -543,11 +543,6 @@ impl NewtonSolver {
         self
     }
 
-    /// The cloth's contact with itself, when on.
-    pub fn self_contact(&self) -> Option<&SelfContact> {
-        self.self_contact.as_ref()
-    }
-
     /// Whether self-contact pairs are in their bands at the assembled iterate (their couplings
     /// are then in the Hessian's products only, so directions come from conjugate gradients).
     fn self_coupled(&self) -> bool {

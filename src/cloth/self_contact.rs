@@ -125,8 +125,6 @@ pub struct SelfContact {
     stamp: Vec<u32>,
     /// The end of a cut path.
     cut_end: Vec<DVec3>,
-    /// The most pairs in their bands at once, since the solver was made.
-    peak_active: usize,
 }
 
 /// A pair's key: a vertex and a triangle, or two edges (the lower index first).
@@ -211,6 +209,18 @@ impl Aabb {
     }
 }
 
+/// The keys of the grid cells of size `cell` (m) that box `b` overlaps (21 bits an axis,
+/// wrapping: far cells may share a key, and queries check boxes anyway).
+fn cells(b: &Aabb, cell: f64) -> impl Iterator<Item = u64> {
+    let lo = (b.lo / cell).floor().as_ivec3();
+    let hi = (b.hi / cell).floor().as_ivec3();
+    let m = |c: i32| u64::from(c as u32 & 0x1f_ffff);
+    (lo.x..=hi.x).flat_map(move |x| {
+        (lo.y..=hi.y)
+            .flat_map(move |y| (lo.z..=hi.z).map(move |z| (m(x) << 42) | (m(y) << 21) | m(z)))
+    })
+}
+
 impl SelfContact {
     /// Self-contact of `model`'s triangles at layer `layer` (m), for the solver of `sys`.
     pub fn new(model: &ClothModel, sys: &ReducedSystem, layer: f64) -> Self {
@@ -220,13 +230,7 @@ impl SelfContact {
             slot[p as usize] = i as u32;
         }
         let triangles = model.mesh.triangles.clone();
-        let mut edges: Vec<[u32; 2]> = triangles
-            .iter()
-            .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
-            .map(|[a, b]| [a.min(b), a.max(b)])
-            .collect();
-        edges.sort_unstable();
-        edges.dedup();
+        let edges = crate::mesh::edges(&triangles);
         let x = model.positions();
         let mean_edge = if edges.is_empty() {
             layer
@@ -256,23 +260,7 @@ impl SelfContact {
             grid: HashGrid::default(),
             stamp: Vec::new(),
             cut_end: Vec::new(),
-            peak_active: 0,
         }
-    }
-
-    /// The layer of pairs that did not start close, m.
-    pub fn layer(&self) -> f64 {
-        self.layer
-    }
-
-    /// The most pairs inside their bands at one iterate so far.
-    pub fn peak_active(&self) -> usize {
-        self.peak_active
-    }
-
-    /// Pairs whose layer is thinned now (they started close, or touch).
-    pub fn thinned(&self) -> usize {
-        self.thinned.len()
     }
 
     /// Moves the pinned particles to their entries of `all` (model order, m).
@@ -473,15 +461,6 @@ impl SelfContact {
         let ends = &self.ends;
         let tri_box = |t: &[u32; 3]| Aabb::of(&t.map(|v| ends[v as usize]), grow);
         let edge_box = |e: &[u32; 2]| Aabb::of(&e.map(|v| ends[v as usize]), grow);
-        let range = |b: &Aabb| {
-            let lo = (b.lo / cell).floor().as_ivec3();
-            let hi = (b.hi / cell).floor().as_ivec3();
-            (lo, hi)
-        };
-        let key = |x: i32, y: i32, z: i32| -> u64 {
-            let m = |c: i32| u64::from(c as u32 & 0x1f_ffff);
-            (m(x) << 42) | (m(y) << 21) | m(z)
-        };
         let mut pairs = std::mem::take(&mut self.pairs);
         pairs.clear();
         let mut bins = std::mem::take(&mut self.bins);
@@ -489,14 +468,7 @@ impl SelfContact {
         // Vertex against triangle.
         bins.clear();
         for (t, tri) in self.triangles.iter().enumerate() {
-            let (lo, hi) = range(&tri_box(tri));
-            for x in lo.x..=hi.x {
-                for y in lo.y..=hi.y {
-                    for z in lo.z..=hi.z {
-                        bins.push((key(x, y, z), t as u32));
-                    }
-                }
-            }
+            bins.extend(cells(&tri_box(tri), cell).map(|k| (k, t as u32)));
         }
         let mut grid = std::mem::take(&mut self.grid);
         grid.build(&bins);
@@ -505,73 +477,54 @@ impl SelfContact {
         let mut now = 0u32;
         for v in 0..self.slot.len() as u32 {
             let vb = Aabb::of(&[ends[v as usize]], grow);
-            let (lo, hi) = range(&vb);
             now += 1;
-            for x in lo.x..=hi.x {
-                for y in lo.y..=hi.y {
-                    for z in lo.z..=hi.z {
-                        let k = key(x, y, z);
-                        for &t in grid.bucket(k) {
-                            if stamp[t as usize] == now {
-                                continue;
-                            }
-                            stamp[t as usize] = now;
-                            let tri = self.triangles[t as usize];
-                            if tri.contains(&v) || !tri_box(&tri).overlaps(&vb) {
-                                continue;
-                            }
-                            // Pinned to pinned pairs never move: nothing to keep apart.
-                            if self.slot[v as usize] == PINNED
-                                && tri.iter().all(|&u| self.slot[u as usize] == PINNED)
-                            {
-                                continue;
-                            }
-                            pairs.push(self.pair(false, v, t, [v, tri[0], tri[1], tri[2]]));
-                        }
+            for k in cells(&vb, cell) {
+                for &t in grid.bucket(k) {
+                    if stamp[t as usize] == now {
+                        continue;
                     }
+                    stamp[t as usize] = now;
+                    let tri = self.triangles[t as usize];
+                    if tri.contains(&v) || !tri_box(&tri).overlaps(&vb) {
+                        continue;
+                    }
+                    // Pinned to pinned pairs never move: nothing to keep apart.
+                    if self.slot[v as usize] == PINNED
+                        && tri.iter().all(|&u| self.slot[u as usize] == PINNED)
+                    {
+                        continue;
+                    }
+                    pairs.push(self.pair(false, v, t, [v, tri[0], tri[1], tri[2]]));
                 }
             }
         }
         // Edge against edge.
         bins.clear();
         for (e, edge) in self.edges.iter().enumerate() {
-            let (lo, hi) = range(&edge_box(edge));
-            for x in lo.x..=hi.x {
-                for y in lo.y..=hi.y {
-                    for z in lo.z..=hi.z {
-                        bins.push((key(x, y, z), e as u32));
-                    }
-                }
-            }
+            bins.extend(cells(&edge_box(edge), cell).map(|k| (k, e as u32)));
         }
         grid.build(&bins);
         for (e, edge) in self.edges.iter().enumerate() {
             let eb = edge_box(edge);
-            let (lo, hi) = range(&eb);
             now += 1;
-            for x in lo.x..=hi.x {
-                for y in lo.y..=hi.y {
-                    for z in lo.z..=hi.z {
-                        let k = key(x, y, z);
-                        for &f in grid.bucket(k) {
-                            if f as usize <= e || stamp[f as usize] == now {
-                                continue;
-                            }
-                            stamp[f as usize] = now;
-                            let other = self.edges[f as usize];
-                            if other.contains(&edge[0])
-                                || other.contains(&edge[1])
-                                || !edge_box(&other).overlaps(&eb)
-                            {
-                                continue;
-                            }
-                            let v = [edge[0], edge[1], other[0], other[1]];
-                            if v.iter().all(|&u| self.slot[u as usize] == PINNED) {
-                                continue;
-                            }
-                            pairs.push(self.pair(true, e as u32, f, v));
-                        }
+            for k in cells(&eb, cell) {
+                for &f in grid.bucket(k) {
+                    if f as usize <= e || stamp[f as usize] == now {
+                        continue;
                     }
+                    stamp[f as usize] = now;
+                    let other = self.edges[f as usize];
+                    if other.contains(&edge[0])
+                        || other.contains(&edge[1])
+                        || !edge_box(&other).overlaps(&eb)
+                    {
+                        continue;
+                    }
+                    let v = [edge[0], edge[1], other[0], other[1]];
+                    if v.iter().all(|&u| self.slot[u as usize] == PINNED) {
+                        continue;
+                    }
+                    pairs.push(self.pair(true, e as u32, f, v));
                 }
             }
         }
@@ -660,7 +613,6 @@ impl SelfContact {
                 stiffness,
             });
         }
-        self.peak_active = self.peak_active.max(active.len());
         let count = active.len();
         self.active = active;
         count

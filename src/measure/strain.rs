@@ -24,13 +24,7 @@ impl EdgeStrain {
     /// Every distinct edge of `triangles`, its rest length taken from `rest` (edges of zero rest
     /// length are left out).
     pub fn new(rest: &[DVec3], triangles: &[[u32; 3]]) -> Self {
-        let mut edges: Vec<[u32; 2]> = triangles
-            .iter()
-            .flat_map(|t| (0..3).map(move |k| [t[k], t[(k + 1) % 3]]))
-            .map(|[a, b]| [a.min(b), a.max(b)])
-            .collect();
-        edges.sort_unstable();
-        edges.dedup();
+        let mut edges = crate::mesh::edges(triangles);
         edges.retain(|&[a, b]| rest[a as usize].distance(rest[b as usize]) > 0.0);
         let lengths = edges
             .iter()

@@ -48,6 +48,15 @@ pub fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
+/// A JSON array of counts.
+pub fn counts_of(v: &serde_json::Value) -> Vec<usize> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_u64().unwrap() as usize)
+        .collect()
+}
+
 /// A JSON `[x, y, z]` array.
 pub fn vec3_of(v: &serde_json::Value) -> DVec3 {
     DVec3::new(
