@@ -177,6 +177,14 @@ fn bad_option_values_name_the_option() {
             ],
             &["--contact", "the fast solver"],
         ),
+        (
+            &["--self-contact", "on", "--solver", "fast"],
+            &["--self-contact", "the fast solver has none"],
+        ),
+        (
+            &["--self-contact", "on", "--self-thickness", "-1"],
+            &["--self-thickness", "positive"],
+        ),
         (&["--contact", "sticky"], &["--contact", "sticky"]),
         (&["--wind", "1,2"], &["--wind", "3 comma-separated"]),
         (

@@ -103,6 +103,13 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
              filtered solve (choose the newton solver, or leave the contact model out)",
         ));
     }
+    if job.self_contact == Switch::On && job.solver == SolverKind::Fast {
+        return Err(Error::param_value(
+            Param::SelfContact,
+            "on: self-contact is part of Newton's solve; the fast solver has none (choose the \
+             newton solver)",
+        ));
+    }
     if job.mass.is_some() && job.density.is_some() {
         return Err(Error::param_value(
             Param::Mass,
@@ -336,12 +343,12 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         threads: job
             .threads
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
-        self_contact: match (job.solver, job.self_contact) {
-            (SolverKind::Newton, Switch::On) => Some(match job.self_thickness {
+        self_contact: match job.self_contact {
+            Switch::On => Some(match job.self_thickness {
                 Some(t) => positive(Param::SelfThickness, t)?,
                 None => colliders.thickness,
             }),
-            _ => None,
+            Switch::Off => None,
         },
         colliders,
         wind,
