@@ -49,6 +49,8 @@ Options (after the `--`):
   --helper                  import with scripts/blender/scenebake_import.py
                             and check the fps, frame range, smooth shading and
                             active action it set against asset.extras
+  --no-shim                 import as plain File > Import does, without the
+                            numpy.bool alias Debian's Blender 3.4 needs
 
 Exit status: 0 if every file imported and met every expectation; 1 otherwise
 (the failures are listed, naming the file and what failed); 2 on bad options.
@@ -63,10 +65,11 @@ import sys
 import time
 
 # Blender 3.4's glTF importer still uses `np.bool`, which numpy 1.24 removed.
-# Restore the alias before the importer is loaded.
+# Restore the alias before the importer is loaded, unless --no-shim asks for the
+# plain File > Import path a user without the helper takes.
 import numpy
 
-if "bool" not in numpy.__dict__:
+if "bool" not in numpy.__dict__ and "--no-shim" not in sys.argv:
     numpy.bool = bool
 
 import bpy  # noqa: E402  (must come after the numpy shim)
@@ -146,6 +149,9 @@ def parse_args(argv):
     ap.add_argument("--switch-actions", action="store_true",
                     help="--playback: also play every other action of an armature, switch back "
                          "and check the bake again")
+    ap.add_argument("--no-shim", action="store_true",
+                    help="import as plain File > Import does: no numpy.bool alias "
+                    "(Debian's Blender 3.4 with numpy 1.24 then fails)")
     ap.add_argument("--skip-node", action="append", default=[], metavar="NAME",
                     help="--playback: leave mesh nodes of this name out of the comparison (a "
                          "known importer defect; each skip is printed)")

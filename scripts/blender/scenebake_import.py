@@ -25,13 +25,16 @@ import os
 import struct
 import sys
 
-try:  # Blender 3.4's importer uses numpy.bool, which numpy 1.24 removed.
-    import numpy
 
+def restore_numpy_bool():
+    """Blender 3.4's glTF importer uses numpy.bool, which numpy 1.24 removed (Debian 12's
+    Blender 3.4 with its numpy 1.24 fails every import without it): restore the alias."""
+    try:
+        import numpy
+    except ImportError:  # pragma: no cover - Blender always ships numpy
+        return
     if "bool" not in numpy.__dict__:
         numpy.bool = bool
-except ImportError:  # pragma: no cover - Blender always ships numpy
-    numpy = None
 
 import bpy  # noqa: E402
 from mathutils import Vector  # noqa: E402
@@ -189,6 +192,7 @@ def shade_smooth(objects):
 
 def import_bake(path, camera=True):
     """Imports `path` into the current scene and sets it up (see the module docs)."""
+    restore_numpy_bool()
     doc = read_gltf_json(path)
     playback = read_playback(doc)
     scene = bpy.context.scene
