@@ -106,9 +106,9 @@ def winding(points, pos, tris):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("file")
-    ap.add_argument("--garment", required=True)
+    ap.add_argument("--garment", required=True, help="the garment's mesh node: name or #N")
     ap.add_argument("--body", required=True, nargs="+",
-                    help="the body's mesh nodes (several: their triangles together)")
+                    help="the body's mesh nodes, names or #N (several: their triangles together)")
     ap.add_argument("--rest", required=True)
     ap.add_argument("--units", type=float, default=1.0)
     ap.add_argument("--pin", required=True)
@@ -120,13 +120,26 @@ def main():
 
     g = gltf_eval.Gltf(a.file)
     nodes = g.doc["nodes"]
-    garment = next(i for i, n in enumerate(nodes) if n.get("name") == a.garment and "mesh" in n)
-    bodies = []
-    for name in a.body:
+
+    def mesh_node(name):
+        """A mesh node by name, or by index as `#N` (unnamed nodes, as `scenebake inspect`
+        lists them)."""
+        if name.startswith("#"):
+            try:
+                i = int(name[1:])
+            except ValueError:
+                sys.exit(f"check_character: {name!r}: expected #N, a node index")
+            if not 0 <= i < len(nodes) or "mesh" not in nodes[i]:
+                sys.exit(f"check_character: {name}: no mesh node with that index "
+                         f"({len(nodes)} nodes)")
+            return i
         found = [i for i, n in enumerate(nodes) if n.get("name") == name and "mesh" in n]
         if not found:
-            sys.exit(f"check_character: no mesh node named {name}")
-        bodies.append(found[0])
+            sys.exit(f"check_character: no mesh node named {name} (unnamed nodes: #N)")
+        return found[0]
+
+    garment = mesh_node(a.garment)
+    bodies = [mesh_node(name) for name in a.body]
 
     def body_at(t):
         pos, tris, base = [], [], 0
