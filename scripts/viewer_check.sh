@@ -16,7 +16,7 @@
 # the same way at frames 0, 60 and 120 (those they have).
 #
 # Needs node_modules in viewer/ (`npm ci --prefix viewer`), /usr/bin/chromium (Debian's
-# `chromium`) and python3 with numpy. Without chromium it exits 1 under CI=true; elsewhere it
+# `chromium`) and python3 with numpy and PIL (Debian's python3-pil). Without chromium it exits 1 under CI=true; elsewhere it
 # prints why it skipped and exits 0.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -71,6 +71,26 @@ node viewer/scripts/capture.mjs --base "$base" --out "$dir/capture.json" --frame
     file/lab_wrap.glb file/lab_wrap.json file/lab_basis.glb file/lab_meshopt.glb file/fox.glb
 "$python" scripts/viewer_check.py "$dir/capture.json" --dir "$dir" \
     --reference lab_meshopt.glb=lab.glb
+
+# `scenebake view FILE --frame N` as a user screenshots it, with Chromium's own --screenshot (no
+# script waits for the page): the paused frame must be drawn after the window's last resize. At
+# least 2 % of the canvas (above the 44-pixel control bar) off its background (#e8e8e8).
+"$chromium" --headless --no-sandbox --disable-gpu --disable-quic --no-first-run \
+    --disable-background-networking --disable-component-update --disable-sync \
+    --user-data-dir="$dir/chromium" --window-size=640,480 --virtual-time-budget=10000 \
+    --screenshot="$dir/frame.png" "$base?file=file/lab.glb&frame=15" 2>/dev/null
+"$python" - "$dir/frame.png" <<'PY'
+import sys
+from PIL import Image
+img = Image.open(sys.argv[1]).convert("RGB")
+w, h = img.size
+px = img.load()
+drawn = sum(1 for y in range(30, h - 44) for x in range(w)
+            if max(abs(c - 0xE8) for c in px[x, y]) > 8)
+share = drawn / (w * (h - 74))
+print(f"viewer screenshot: {drawn} pixels of the bake ({100 * share:.1f} % of the canvas)")
+sys.exit(0 if share >= 0.02 else f"error: {sys.argv[1]}: the paused frame is not drawn")
+PY
 kill "$server"
 server=""
 

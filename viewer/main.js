@@ -45,11 +45,13 @@ scene.add(sun);
 const camera = new THREE.PerspectiveCamera(35, 1, 0.01, 1000);
 const controls = new OrbitControls(camera, renderer.domElement);
 
+// A resize clears the canvas: draw again, or a paused view (`frame=N`) stays blank.
 function resize() {
   const { clientWidth: w, clientHeight: h } = view;
   renderer.setSize(w, h, false);
   camera.aspect = w / Math.max(h, 1);
   camera.updateProjectionMatrix();
+  renderer.render(scene, camera);
 }
 window.addEventListener('resize', resize);
 resize();
