@@ -1055,8 +1055,11 @@ struct Exported {
     usd: Option<UsdReport>,
 }
 
-/// Files to write, as (path, bytes).
-type Files = Vec<(PathBuf, Vec<u8>)>;
+/// A file to write, as (path, bytes).
+type File = (PathBuf, Vec<u8>);
+
+/// Files to write.
+type Files = Vec<File>;
 
 /// Encodes the point caches `--pc2` and `--mdd` ask for: `cache`'s frames (frame 0 the initial
 /// state, as the glTF's) of `mesh`, frame k at `start_time + k / fps` seconds.
@@ -1097,7 +1100,7 @@ pub(crate) fn encode_usd_layer(
     cache: &crate::cloth::FrameCache,
     options: &MorphOptions,
     body: Option<AnimatedBody<'_>>,
-) -> Result<Option<((PathBuf, Vec<u8>), UsdReport)>> {
+) -> Result<Option<(File, UsdReport)>> {
     let Some(path) = &job.usd else {
         return Ok(None);
     };
