@@ -199,6 +199,35 @@ fn a_body_sequence_is_a_mesh_with_time_sampled_points() {
     );
 }
 
+/// With `--rig` the layer holds the garment (not the character), its frames the written loop's,
+/// keyed from the animation's start as the glTF is (time code = key time × fps).
+#[test]
+fn a_rig_bake_writes_the_garment() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = ClothJob {
+        input: Some(fixture("cache_sheet.obj")),
+        output: dir.path().join("rig.glb"),
+        rig: Some(mesh_path("RiggedSimple.gltf")),
+        pin_to: Some("Bone.001".into()),
+        body_collider: scenebake::bake::cloth::Switch::Off,
+        translate: Some(DVec3::new(3.0, 3.0, 0.0)),
+        pin: vec!["box:-10,3.9,-10,10,4.1,10".parse::<PinSpec>().unwrap()],
+        usd: Some(dir.path().join("rig.usda")),
+        ..ClothJob::default()
+    };
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let r = report.usd.as_ref().unwrap();
+    assert_eq!(r.prims, ["/World/cache_sheet"]);
+    assert!(
+        r.time_codes[0] > 0.0,
+        "the loop starts after the animation's start"
+    );
+    let Some(python) = usd_python() else { return };
+    let (ok, figures) = usd_check(&python, job.usd.as_ref().unwrap(), &job.output, &[]);
+    assert!(ok, "{figures:#}");
+    assert_eq!(figures["startTimeCode"].as_f64().unwrap(), r.time_codes[0]);
+}
+
 #[test]
 fn bad_usd_paths_are_refused_before_the_bake_and_write_nothing() {
     let dir = tempfile::tempdir().unwrap();
