@@ -110,6 +110,8 @@ params! {
     Pc2 => "pc2",
     /// An MDD point cache.
     Mdd => "mdd",
+    /// A USD layer.
+    Usd => "usd",
     /// Keyframe reduction tolerance.
     KeyframeTolerance => "keyframe_tolerance",
     /// Sparse morph targets.

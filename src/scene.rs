@@ -439,6 +439,7 @@ fn resolve_cloth(job: &mut ClothJob, dir: &Path) {
     job.vat = job.vat.as_deref().map(at);
     job.pc2 = job.pc2.as_deref().map(at);
     job.mdd = job.mdd.as_deref().map(at);
+    job.usd = job.usd.as_deref().map(at);
     for c in &mut job.collider {
         if let ColliderSpec::Mesh { path, .. } = c {
             *path = at(path);

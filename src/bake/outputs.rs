@@ -50,11 +50,12 @@ pub fn gltf_files(output: &Path) -> Vec<OutputFile> {
 }
 
 /// Every file a cloth job writes: its glTF (and `.bin`), its VAT images and JSON, its point
-/// caches, its report.
+/// caches, its USD layer, its report.
 pub fn cloth_outputs(job: &ClothJob) -> Vec<OutputFile> {
     let mut files = gltf_files(&job.output);
     files.extend(job.pc2.iter().map(|p| OutputFile::new(Param::Pc2, p)));
     files.extend(job.mdd.iter().map(|p| OutputFile::new(Param::Mdd, p)));
+    files.extend(job.usd.iter().map(|p| OutputFile::new(Param::Usd, p)));
     if let Some(vat) = &job.vat {
         files.push(OutputFile::new(Param::Vat, vat));
         // A malformed --vat path is reported by the bake's own option checks.

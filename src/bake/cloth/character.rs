@@ -6,9 +6,9 @@ use glam::DVec3;
 use std::time::Instant;
 
 use super::{
-    check_export_options, encode_point_caches, length_words, prepare_cloth, quality_report, report,
-    scaled_words, simulate_on_body, CacheReport, CharacterReport, ClothJob, ClothReport, Exported,
-    PreparedCloth, Switch,
+    check_export_options, encode_point_caches, encode_usd_layer, length_words, prepare_cloth,
+    quality_report, report, scaled_words, simulate_on_body, CacheReport, CharacterReport, ClothJob,
+    ClothReport, Exported, PreparedCloth, Switch,
 };
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::{FrameCache, SolverKind};
@@ -208,6 +208,14 @@ pub fn bake_on_character(
         encode_point_caches(job, &model.mesh, &cache, fps, options.start_time)?;
     let mut files = morph.files;
     files.extend(cache_files);
+    // The USD layer holds the garment only: the character's skinned body is not written there.
+    let usd = match encode_usd_layer(job, &model.mesh, &cache, &options, None)? {
+        Some((file, report)) => {
+            files.push(file);
+            Some(report)
+        }
+        None => None,
+    };
     let written = Written::write_all(files)?;
     let exported = Exported {
         written,
@@ -219,6 +227,7 @@ pub fn bake_on_character(
         },
         vat: None,
         point_caches,
+        usd,
     };
     let seconds_export = export_start.elapsed().as_secs_f64();
     let quality = quality_report(&sim, first_written, job.strain_limit);

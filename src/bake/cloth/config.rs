@@ -267,6 +267,12 @@ pub struct ClothJob {
     /// it too): the same frames and points as --pc2, with each frame's time in seconds.
     #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.mdd"))]
     pub mdd: Option<PathBuf>,
+    /// Also write a USD layer (text .usda; for Blender's USD import, Houdini, usdview): the cloth
+    /// as a mesh with time-sampled points and normals (the --pc2 points: every frame from frame 0,
+    /// frame k at time code k, the bake's fps), the colliders as static meshes and a --body
+    /// sequence as a mesh with time-sampled points, in metres, +Y up.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.usda"))]
+    pub usd: Option<PathBuf>,
     /// Keep only the frames needed for linear playback to reproduce every baked frame within T
     /// (scene units, largest vertex distance); first and last frames are always kept
     /// [default: off, one morph target per frame].
@@ -523,6 +529,7 @@ impl Default for ClothJob {
             vat_max_width: DEFAULT_MAX_WIDTH,
             pc2: None,
             mdd: None,
+            usd: None,
             keyframe_tolerance: None,
             sparse: SparseMode::Auto,
             basis: None,

@@ -35,6 +35,7 @@ use crate::export::morph::{check_cache, encode_morph_gltf_with_body, AnimatedBod
 use crate::export::pointcache::{
     check_point_cache_path, encode_point_cache, PointCacheFormat, PointCacheOptions,
 };
+use crate::export::usd::{check_usd_path, encode_usd, UsdMesh, UsdOptions, UsdPoints};
 use crate::export::vat::{encode_vat, vat_paths};
 use crate::export::{BasisOptions, Compression, QuantizeMode};
 use crate::export::{MorphOptions, RenderFrames, VatOptions, Written};
@@ -590,7 +591,7 @@ fn prepare_wind(job: &ClothJob) -> Result<Option<Wind>> {
 }
 
 /// Checks the export options that need no mesh: `--keyframe-tolerance`, `--vat`,
-/// `--vat-max-width`, `--pc2` and `--mdd`.
+/// `--vat-max-width`, `--pc2`, `--mdd` and `--usd`.
 ///
 /// # Errors
 /// [`Error::InvalidOption`] naming the option.
@@ -646,10 +647,15 @@ pub fn check_export_options(job: &ClothJob) -> Result<()> {
     Ok(())
 }
 
-/// `--pc2` and `--mdd`: each a file that can be written, and no file of the job written twice
-/// (a cache on the output, its `.bin`, the report, the VAT's files or the other cache).
+/// `--pc2`, `--mdd` and `--usd`: each a file that can be written (a `.usda` for `--usd`), and no
+/// file of the job written twice (a cache on the output, its `.bin`, the report, the VAT's files
+/// or another cache).
 fn check_point_cache_options(job: &ClothJob) -> Result<()> {
-    let caches = [(Param::Pc2, &job.pc2), (Param::Mdd, &job.mdd)];
+    let caches = [
+        (Param::Pc2, &job.pc2),
+        (Param::Mdd, &job.mdd),
+        (Param::Usd, &job.usd),
+    ];
     if caches.iter().all(|(_, p)| p.is_none()) {
         return Ok(());
     }
@@ -677,6 +683,9 @@ fn check_point_cache_options(job: &ClothJob) -> Result<()> {
     for (param, path) in caches {
         let Some(path) = path else { continue };
         check_point_cache_path(param, path)?;
+        if param == Param::Usd {
+            check_usd_path(path)?;
+        }
         let key = same_file_key(path);
         if let Some((other, other_path)) = others.iter().find(|(_, o)| same_file_key(o) == key) {
             return Err(Error::param_value(
@@ -1043,10 +1052,14 @@ struct Exported {
     cache: CacheReport,
     vat: Option<VatReport>,
     point_caches: Vec<PointCacheReport>,
+    usd: Option<UsdReport>,
 }
 
-/// Files to write, as (path, bytes).
-type Files = Vec<(PathBuf, Vec<u8>)>;
+/// A file to write, as (path, bytes).
+type File = (PathBuf, Vec<u8>);
+
+/// Files to write.
+type Files = Vec<File>;
 
 /// Encodes the point caches `--pc2` and `--mdd` ask for: `cache`'s frames (frame 0 the initial
 /// state, as the glTF's) of `mesh`, frame k at `start_time + k / fps` seconds.
@@ -1077,6 +1090,78 @@ fn encode_point_caches(
         files.push((encoded.path, encoded.bytes));
     }
     Ok((files, reports))
+}
+
+/// Encodes the USD layer `--usd` asks for: the cloth (`cache`'s frames of `mesh`'s particles,
+/// frame k at time code `start_time × fps + k`), the static meshes and the body, when given.
+pub(crate) fn encode_usd_layer(
+    job: &ClothJob,
+    mesh: &Mesh,
+    cache: &crate::cloth::FrameCache,
+    options: &MorphOptions,
+    body: Option<AnimatedBody<'_>>,
+) -> Result<Option<(File, UsdReport)>> {
+    let Some(path) = &job.usd else {
+        return Ok(None);
+    };
+    let frames = cache.frame_count();
+    let mut scratch = Vec::new();
+    let (mut positions, mut normals) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
+    for k in 0..frames {
+        let p = cache.frame(k);
+        let p64: Vec<DVec3> = p.iter().map(|p| p.as_dvec3()).collect();
+        crate::export::shading::angle_weighted_normals(&p64, &mesh.triangles, &mut scratch);
+        positions.push(p.to_vec());
+        normals.push(scratch.iter().map(|n| n.as_vec3()).collect());
+    }
+    let mut meshes = vec![UsdMesh {
+        name: options.name.clone(),
+        triangles: mesh.triangles.clone(),
+        points: UsdPoints::Animated { positions, normals },
+        double_sided: true,
+    }];
+    meshes.extend(options.static_meshes.iter().map(|s| {
+        UsdMesh {
+            name: s.name.clone(),
+            triangles: s
+                .indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect(),
+            points: UsdPoints::Static {
+                positions: s.positions.clone(),
+                normals: s.normals.clone(),
+            },
+            double_sided: false,
+        }
+    }));
+    if let Some(body) = body {
+        let n = body.frames.frame_count();
+        meshes.push(UsdMesh {
+            name: body.name.to_owned(),
+            triangles: body.mesh.render_triangles.clone(),
+            points: UsdPoints::Animated {
+                positions: (0..n).map(|k| body.frames.positions(k).to_vec()).collect(),
+                normals: (0..n).map(|k| body.frames.normals(k).to_vec()).collect(),
+            },
+            double_sided: false,
+        });
+    }
+    let usd_options = UsdOptions {
+        fps: options.fps,
+        start_time: options.start_time,
+        frames,
+    };
+    let encoded = encode_usd(path, &meshes, &usd_options)?;
+    let report = UsdReport {
+        file: encoded.path.clone(),
+        bytes: encoded.bytes.len() as u64,
+        prims: encoded.prims,
+        frames,
+        time_codes: encoded.time_codes,
+        fps: options.fps,
+    };
+    Ok(Some(((encoded.path, encoded.bytes), report)))
 }
 
 /// Encodes the morph glTF and, when asked, the VAT, then writes them all as one atomic set.
@@ -1156,6 +1241,13 @@ fn export(
     let (cache_files, point_caches) =
         encode_point_caches(job, &model.mesh, cache, options.fps, options.start_time)?;
     files.extend(cache_files);
+    let usd = match encode_usd_layer(job, &model.mesh, cache, &options, body)? {
+        Some((file, report)) => {
+            files.push(file);
+            Some(report)
+        }
+        None => None,
+    };
     let written = Written::write_all(files)?;
     Ok(Exported {
         written,
@@ -1167,6 +1259,7 @@ fn export(
         },
         vat,
         point_caches,
+        usd,
     })
 }
 
@@ -1205,6 +1298,7 @@ fn report(
         cache,
         vat,
         point_caches,
+        usd,
     } = exported;
     let PreparedCloth { model, params, .. } = prepared;
     let total_iterations: usize = frames.iter().map(|f| f.iterations).sum();
@@ -1256,6 +1350,7 @@ fn report(
         cache,
         vat,
         point_caches,
+        usd,
         environment: environment_report(params, frames),
         self_contact: params.self_contact.map(|thickness| SelfContactReport {
             thickness,

@@ -82,6 +82,8 @@ pub struct ClothReport {
     pub vat: Option<VatReport>,
     /// The point caches `--pc2` and `--mdd` wrote (none without them).
     pub point_caches: Vec<PointCacheReport>,
+    /// The USD layer `--usd` wrote, when given.
+    pub usd: Option<UsdReport>,
     /// Colliders, contacts and wind, when any.
     pub environment: Option<EnvironmentReport>,
     /// The cloth's contact with itself, when on (`--self-contact`).
@@ -225,6 +227,23 @@ pub struct PointCacheReport {
     /// Frames, frame 0 (the initial state) included; one sample per frame.
     pub frames: usize,
     /// Frames per second.
+    pub fps: f64,
+}
+
+/// A USD layer as written (`--usd`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct UsdReport {
+    /// The file.
+    pub file: PathBuf,
+    /// Its size.
+    pub bytes: u64,
+    /// Its meshes' prim paths: the cloth's first, then the colliders', then a body's.
+    pub prims: Vec<String>,
+    /// Frames, frame 0 (the initial state) included: the animated meshes' time samples.
+    pub frames: usize,
+    /// The first and last frames' time codes.
+    pub time_codes: [f64; 2],
+    /// Time codes (frames) per second.
     pub fps: f64,
 }
 
