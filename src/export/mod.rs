@@ -14,6 +14,7 @@ pub mod pointcache;
 pub mod shading;
 pub mod skin;
 pub mod statics;
+pub mod tube;
 pub mod vat;
 
 pub use basis::{BasisOptions, BasisSize, BasisStats, QuantizeMode};
