@@ -28,7 +28,7 @@ fn drawn_distance(p: DVec3, tips: &[DVec3], down: &[bool], upto: usize) -> f64 {
         if !down[k] {
             continue;
         }
-        let d = if k + 1 <= upto && k + 1 < tips.len() && down[k + 1] {
+        let d = if k < upto && k + 1 < tips.len() && down[k + 1] {
             segment_distance(p, tips[k], tips[k + 1])
         } else {
             p.distance(tips[k])
