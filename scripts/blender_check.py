@@ -473,7 +473,7 @@ def add_framing_camera(scene, mesh_objs, width, height):
 
 
 def thicken_lines(mesh_objs, radius):
-    """Give edge-only meshes (glTF LINES: IK target paths and trails) a round bevel, since
+    """Give edge-only meshes (glTF LINES: IK target paths) a round bevel, since
     renderers draw no loose edges. Object transforms and their animation are kept."""
     for obj in mesh_objs:
         if len(obj.data.polygons) == 0 and len(obj.data.edges) > 0:

@@ -220,6 +220,8 @@ params! {
     TipAxis => "tip_axis",
     /// The rig animation the bake is layered on.
     BaseAnimation => "base_animation",
+    /// The radius of the drawn trail's tubes.
+    TrailRadius => "trail_radius",
 }
 
 impl fmt::Display for Param {

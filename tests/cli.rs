@@ -561,6 +561,39 @@ fn bad_ik_options_name_the_option_or_joint() {
         ),
         (
             &[
+                "--preset",
+                "lab-arm",
+                "--curve",
+                "circle",
+                "--trail-radius",
+                "0",
+            ],
+            &["error: invalid value for --trail-radius: 0: must be a positive number"],
+        ),
+        (
+            &[
+                "--preset",
+                "lab-arm",
+                "--curve",
+                "circle",
+                "--trail-radius",
+                "-0.5",
+            ],
+            &["error: invalid value for --trail-radius: -0.5: must be a positive number"],
+        ),
+        (
+            &[
+                "--preset",
+                "lab-arm",
+                "--curve",
+                "circle",
+                "--trail-radius",
+                "inf",
+            ],
+            &["error: invalid value for --trail-radius: inf: must be a positive number"],
+        ),
+        (
+            &[
                 "--rig",
                 fox,
                 "--chain",

@@ -61,6 +61,20 @@ fn read_anim(l: &Loaded, name: &str) -> Anim {
         end: 0.0,
     };
     for ch in a.channels() {
+        // The drawn trail's pieces are revealed by STEP scale keys; the rest is LINEAR.
+        if ch
+            .target()
+            .node()
+            .name()
+            .is_some_and(|n| n.starts_with("trail_"))
+        {
+            assert_eq!(ch.target().property(), gltf::animation::Property::Scale);
+            assert_eq!(
+                ch.sampler().interpolation(),
+                gltf::animation::Interpolation::Step
+            );
+            continue;
+        }
         assert_eq!(
             ch.sampler().interpolation(),
             gltf::animation::Interpolation::Linear

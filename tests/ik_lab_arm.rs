@@ -345,8 +345,15 @@ fn generated_chain_has_armature_skin_and_meshes() {
         .meshes()
         .flat_map(|m| m.primitives().map(|p| p.mode()))
         .collect();
+    // The target path is a guide of lines; the trail is tubes (triangles) that render.
     assert!(modes.contains(&gltf::mesh::Mode::Lines));
-    assert!(modes.contains(&gltf::mesh::Mode::LineStrip));
+    assert!(!modes.contains(&gltf::mesh::Mode::LineStrip));
+    let trail = l.doc.nodes().find(|n| n.name() == Some("trail")).unwrap();
+    assert!(trail.children().all(|p| p
+        .mesh()
+        .unwrap()
+        .primitives()
+        .all(|q| q.mode() == gltf::mesh::Mode::Triangles)));
     assert!(l.doc.nodes().any(|n| n.name() == Some("pen_tip")));
 }
 

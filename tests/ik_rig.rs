@@ -34,12 +34,27 @@ fn fox_spine_draws_a_heart_and_keeps_the_document() {
 
         let before = load(&mesh("Fox.glb"));
         let after = load(&job.output);
-        assert_eq!(after.doc.meshes().count(), before.doc.meshes().count());
+        // Added: the drawn trail, a `trail` node holding one mesh node per piece, and its material.
+        let pieces = after
+            .doc
+            .nodes()
+            .nth(after.node_by_name("trail"))
+            .unwrap()
+            .children()
+            .count();
+        assert!(pieces > 0);
+        assert_eq!(
+            after.doc.meshes().count(),
+            before.doc.meshes().count() + pieces
+        );
         assert_eq!(after.doc.skins().count(), before.doc.skins().count());
-        assert_eq!(after.doc.nodes().count(), before.doc.nodes().count());
+        assert_eq!(
+            after.doc.nodes().count(),
+            before.doc.nodes().count() + pieces + 1
+        );
         assert_eq!(
             after.doc.materials().count(),
-            before.doc.materials().count()
+            before.doc.materials().count() + 1
         );
         assert_eq!(after.doc.textures().count(), before.doc.textures().count());
         assert_eq!(after.doc.images().count(), before.doc.images().count());
@@ -163,7 +178,14 @@ fn matrix_nodes_and_negative_w_rig_is_animated_in_its_real_frames() {
         "animated node must be TRS"
     );
     assert_eq!(l.doc.animations().count(), 2);
-    assert_eq!(l.doc.meshes().count(), src.doc.meshes().count());
+    let pieces = l
+        .doc
+        .nodes()
+        .nth(l.node_by_name("trail"))
+        .unwrap()
+        .children()
+        .count();
+    assert_eq!(l.doc.meshes().count(), src.doc.meshes().count() + pieces);
     let tracks = l.animation("ik");
     let tip = l.node_by_name("Bone.001");
     let (times, keys) = tracks.rotation.get(&bone).unwrap();

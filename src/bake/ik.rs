@@ -14,7 +14,7 @@ use glam::{DQuat, DVec2, DVec3};
 use crate::data::animation::{Clip, Skeleton, Trs};
 use crate::error::{Error, Result};
 use crate::export::skin::NodeFrames;
-use crate::export::skin::{write_chain_gltf, write_rig_gltf, IkFrames};
+use crate::export::skin::{write_chain_gltf, write_rig_gltf, IkFrames, Trail};
 use crate::ik::chain::{Chain, Joint, Pose, ROOT_HEIGHT_FRACTION};
 use crate::ik::constraints::{Constraints, TipAxis};
 use crate::ik::solver::{IkSolver, SolverConfig};
@@ -219,6 +219,11 @@ pub struct IkJob {
     /// Seconds for the pen to reach --pen-speed from rest, and to stop [default: 0.15].
     #[cfg_attr(feature = "cli", arg(long, value_name = "S"))]
     pub ease: Option<f64>,
+    /// Radius of the drawn trail, written as tubes, in scene units [default: 0.5% of the
+    /// drawing's size (the diagonal of the pen-down targets' bounding box)].
+    #[cfg_attr(feature = "cli", arg(long, value_name = "M"))]
+    #[serde(alias = "trail-radius")]
+    pub trail_radius: Option<f64>,
     /// Output file: .glb, or .gltf with a .bin beside it.
     #[cfg_attr(feature = "cli", arg(short = 'o', long, value_name = "FILE"))]
     pub output: PathBuf,
@@ -261,6 +266,7 @@ impl Default for IkJob {
             spacing: None,
             pen_speed: None,
             ease: None,
+            trail_radius: None,
             output: PathBuf::new(),
             report: None,
             name: None,
@@ -312,6 +318,8 @@ pub struct IkReport {
     pub max_error: f64,
     /// The chain's reach (scene units).
     pub reach: f64,
+    /// Radius of the drawn trail's tubes (scene units).
+    pub trail_radius: f64,
     /// Seconds spent solving.
     pub seconds_solve: f64,
     /// Seconds for the whole bake (loading, solving, writing).
@@ -669,6 +677,22 @@ fn build_strokes(
         .collect())
 }
 
+/// The trail radius when none is given: 0.5% of the diagonal of the pen-down targets' bounding
+/// box (0.2% of the reach for a drawing that is a single point).
+fn default_trail_radius(targets: &[PenTarget], reach: f64) -> f64 {
+    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+    for t in targets.iter().filter(|t| t.stroke.is_some()) {
+        lo = lo.min(t.position);
+        hi = hi.max(t.position);
+    }
+    let size = (hi - lo).length();
+    if size.is_finite() && size > 0.0 {
+        0.005 * size
+    } else {
+        0.002 * reach
+    }
+}
+
 /// Runs an IK bake: builds the chain and the pen path, solves one target per frame (warm start
 /// from the previous frame), writes the glTF at `job.output` and, if asked, the report JSON.
 /// `progress(done, total)` is called after each solved frame.
@@ -693,6 +717,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     positive_opt(Param::Radius, job.radius)?;
     positive_opt(Param::Size, job.size)?;
     positive_opt(Param::Spacing, job.spacing)?;
+    positive_opt(Param::TrailRadius, job.trail_radius)?;
     if let Some(l) = job.lift {
         crate::spec::non_negative(Param::Lift, l)?;
     }
@@ -838,6 +863,13 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
         rotations: &rotations,
         name: "ik",
     };
+    let trail = Trail {
+        targets: &targets,
+        tips: &tips,
+        radius: job
+            .trail_radius
+            .unwrap_or_else(|| default_trail_radius(&targets, reach)),
+    };
     let mut warnings = Vec::new();
     let written = match setup.rig {
         Some((doc, nodes)) => {
@@ -853,9 +885,10 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
                 &nodes,
                 &frames,
                 node_frames.as_ref(),
+                &trail,
             )?
         }
-        None => write_chain_gltf(&job.output, chain, &rest, &frames, &targets, &tips)?,
+        None => write_chain_gltf(&job.output, chain, &rest, &frames, &trail)?,
     };
     let mut report = IkReport {
         joints: chain.len(),
@@ -873,6 +906,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
         unreachable: unreachable_frames.len(),
         unreachable_frames,
         reach,
+        trail_radius: trail.radius,
         seconds_solve,
         seconds_total: 0.0,
         files: written.files,

@@ -14,6 +14,7 @@ pub mod pointcache;
 pub mod shading;
 pub mod skin;
 pub mod statics;
+pub mod tube;
 pub mod usd;
 pub mod vat;
 

@@ -3,9 +3,11 @@
 //! For a generated chain the document is built from scratch: joint nodes `joint_0`… (parented in
 //! order, rest translation = offset), a skinned arm mesh (a tapered box per bone, each rigidly
 //! weighted to its bone's joint) at the scene root, a pen-tip marker under the end effector, the
-//! target path as a LINES mesh, and the drawn trail as LINE_STRIP pieces revealed one after
-//! another by STEP scale keys (half a frame before the frame that draws each piece's end). For a rig the input document is written back with only one
-//! animation added.
+//! target path as a LINES mesh (a guide for viewers that draw lines; renderers skip it), and the
+//! drawn trail as tube pieces ([`super::tube`]) revealed one after another by STEP scale keys
+//! (half a frame before the frame that draws each piece's end). For a rig the input document is
+//! written back with one animation added, and the drawn trail (the same tubes, in the
+//! document's world frame, revealed by that animation) at the root of its scene.
 //!
 //! Quaternions are written (x, y, z, w), normalised in `f32` and sign-continuous (each key is
 //! negated if needed to lie in the same hemisphere as the previous one).
@@ -28,6 +30,17 @@ use crate::path::PenTarget;
 pub const HIDDEN_SCALE: f32 = 1e-4;
 /// Frames per trail piece.
 const TRAIL_PIECE: usize = 12;
+
+/// The pen's drawn trail, written as tubes ([`super::tube`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Trail<'a> {
+    /// The pen path, one target per frame (its strokes say when the pen is down).
+    pub targets: &'a [PenTarget],
+    /// The end-effector positions reached, one per frame, in the document's world frame.
+    pub tips: &'a [DVec3],
+    /// Tube radius, scene units.
+    pub radius: f64,
+}
 
 /// Per-frame local transforms of a set of nodes: an animation the IK is layered on, with the
 /// chain's solved rotations already in place. Written as one TRS key per frame and node.
@@ -195,9 +208,109 @@ fn tapered_box(
     quad([hi[0], hi[1], hi[2], hi[3]]);
 }
 
+/// Adds the drawn trail under a `trail` node (returned; `None` when the pen never drew): per
+/// stroke, a tube of `trail.radius` around the reached tip positions, cut into pieces of
+/// [`TRAIL_PIECE`] frames (`trail_000`, ...), each revealed (scale from [`HIDDEN_SCALE`] to 1,
+/// STEP, about its first point) half a frame before the frame that draws its last point, so
+/// every viewer shows it from that frame on (a STEP key exactly on a frame is at the mercy of
+/// f32 rounding of the key time).
+fn trail_nodes(
+    b: &mut GltfBuilder,
+    frames: &IkFrames<'_>,
+    trail: &Trail<'_>,
+    channels: &mut Vec<json::animation::Channel>,
+    samplers: &mut Vec<json::animation::Sampler>,
+) -> Option<json::Index<json::Node>> {
+    let array = Some(json::buffer::Target::ArrayBuffer);
+    let targets = trail.targets;
+    let trail_mat = material(b, "trail", [0.02, 0.04, 0.2, 1.0], 0.0);
+    let mut pieces = Vec::new();
+    let mut k = 0;
+    while k < targets.len() {
+        let Some(stroke) = targets[k].stroke else {
+            k += 1;
+            continue;
+        };
+        let mut last = k;
+        while last + 1 < targets.len() && targets[last + 1].stroke == Some(stroke) {
+            last += 1;
+        }
+        let points = &trail.tips[k..=last];
+        let tube = super::tube::Tube::new(points, trail.radius);
+        let mut from = 0;
+        while from < points.len() {
+            let to = (from + TRAIL_PIECE - 1).min(points.len() - 1);
+            let origin = points[from];
+            let m = tube.mesh(from, to, origin);
+            let end = k + to;
+            from = to + 1;
+            if m.indices.is_empty() {
+                continue;
+            }
+            let name = format!("trail_{:03}", pieces.len());
+            let mut attrs = BTreeMap::new();
+            attrs.insert(
+                Valid(json::mesh::Semantic::Positions),
+                b.vec3(&m.positions, array, true),
+            );
+            attrs.insert(
+                Valid(json::mesh::Semantic::Normals),
+                b.vec3(&m.normals, array, false),
+            );
+            let indices = b.indices(&m.indices);
+            let mesh = mesh(
+                b,
+                &name,
+                vec![primitive(
+                    attrs,
+                    Some(indices),
+                    trail_mat,
+                    json::mesh::Mode::Triangles,
+                )],
+            );
+            let hidden = end > 0;
+            let node = b.root.push(json::Node {
+                name: Some(name),
+                mesh: Some(mesh),
+                translation: Some(f32v(origin)),
+                scale: hidden.then_some([HIDDEN_SCALE; 3]),
+                ..Default::default()
+            });
+            if hidden {
+                let reveal = ((end as f64 - 0.5) / frames.fps) as f32;
+                let input = b.scalars(&[0.0, reveal], true);
+                let output = b.vec3(&[Vec3::splat(HIDDEN_SCALE), Vec3::ONE], None, false);
+                channels.push(channel(
+                    samplers.len(),
+                    node,
+                    json::animation::Property::Scale,
+                ));
+                samplers.push(sampler(input, output, json::animation::Interpolation::Step));
+            }
+            pieces.push(node);
+        }
+        k = last + 1;
+    }
+    (!pieces.is_empty()).then(|| {
+        b.root.push(json::Node {
+            name: Some("trail".into()),
+            children: Some(pieces),
+            ..Default::default()
+        })
+    })
+}
+
+/// Adds `node` to the roots of the document's default scene (the first when none is set).
+fn add_to_scene(root: &mut json::Root, node: json::Index<json::Node>) {
+    let scene = root.scene.map_or(0, |s| s.value());
+    if let Some(s) = root.scenes.get_mut(scene) {
+        s.nodes.push(node);
+    }
+}
+
 /// Writes a generated chain's bake: armature, skinned arm, pen marker, target path, trail.
-/// `rest` is the chain's rest pose (bind pose), `targets` the pen path (one per frame) and
-/// `tips` the end-effector positions reached (one per frame).
+/// `rest` is the chain's rest pose (bind pose); `trail` holds the pen path and the end-effector
+/// positions reached (one per frame).
 ///
 /// # Errors
 /// Write errors ([`crate::Error::Io`], [`crate::Error::Export`]).
@@ -206,8 +319,7 @@ pub fn write_chain_gltf(
     chain: &Chain,
     rest: &Pose,
     frames: &IkFrames<'_>,
-    targets: &[PenTarget],
-    tips: &[DVec3],
+    trail: &Trail<'_>,
 ) -> Result<Written> {
     let mut b = GltfBuilder::new();
     let n = chain.len();
@@ -359,7 +471,7 @@ pub fn write_chain_gltf(
 
     // Target path: the pen-down segments of the path, as LINES.
     let mut line_pos = Vec::new();
-    for w in targets.windows(2) {
+    for w in trail.targets.windows(2) {
         if w[0].stroke.is_some() && w[0].stroke == w[1].stroke {
             line_pos.push(w[0].position.as_vec3());
             line_pos.push(w[1].position.as_vec3());
@@ -384,8 +496,6 @@ pub fn write_chain_gltf(
         }));
     }
 
-    // The drawn trail: pieces of the reached tip positions along each stroke, revealed (scale
-    // from HIDDEN_SCALE to 1, STEP) at the frame their last point is drawn.
     let (mut channels, mut samplers) = rotation_channels(
         &mut b,
         frames,
@@ -393,78 +503,8 @@ pub fn write_chain_gltf(
             .map(|i| (i, joint_nodes[i]))
             .collect::<Vec<_>>(),
     );
-    let trail_mat = material(&mut b, "trail", [0.05, 0.05, 0.05, 1.0], 0.0);
-    let mut pieces = Vec::new();
-    let mut k = 0;
-    while k < targets.len() {
-        let Some(stroke) = targets[k].stroke else {
-            k += 1;
-            continue;
-        };
-        let mut end = k;
-        while end + 1 < targets.len()
-            && targets[end + 1].stroke == Some(stroke)
-            && end + 1 - k < TRAIL_PIECE
-        {
-            end += 1;
-        }
-        let first = if k > 0 && targets[k - 1].stroke == Some(stroke) {
-            k - 1
-        } else {
-            k
-        };
-        if end > first {
-            let origin = tips[first];
-            let pts: Vec<Vec3> = (first..=end)
-                .map(|f| (tips[f] - origin).as_vec3())
-                .collect();
-            let mut attrs = BTreeMap::new();
-            attrs.insert(
-                Valid(json::mesh::Semantic::Positions),
-                b.vec3(&pts, array, true),
-            );
-            let m = mesh(
-                &mut b,
-                &format!("trail_{:03}", pieces.len()),
-                vec![primitive(
-                    attrs,
-                    None,
-                    trail_mat,
-                    json::mesh::Mode::LineStrip,
-                )],
-            );
-            // Revealed half a frame before the frame that draws its last point, so every
-            // viewer shows it from that frame on (a STEP key exactly on a frame is at the mercy
-            // of f32 rounding of the key time).
-            let reveal = ((end as f64 - 0.5) / frames.fps) as f32;
-            let hidden = end > 0;
-            let node = b.root.push(json::Node {
-                name: Some(format!("trail_{:03}", pieces.len())),
-                mesh: Some(m),
-                translation: Some(f32v(origin)),
-                scale: hidden.then_some([HIDDEN_SCALE; 3]),
-                ..Default::default()
-            });
-            if hidden {
-                let input = b.scalars(&[0.0, reveal], true);
-                let output = b.vec3(&[Vec3::splat(HIDDEN_SCALE), Vec3::ONE], None, false);
-                channels.push(channel(
-                    samplers.len(),
-                    node,
-                    json::animation::Property::Scale,
-                ));
-                samplers.push(sampler(input, output, json::animation::Interpolation::Step));
-            }
-            pieces.push(node);
-        }
-        k = end + 1;
-    }
-    if !pieces.is_empty() {
-        scene_nodes.push(b.root.push(json::Node {
-            name: Some("trail".into()),
-            children: Some(pieces),
-            ..Default::default()
-        }));
+    if let Some(node) = trail_nodes(&mut b, frames, trail, &mut channels, &mut samplers) {
+        scene_nodes.push(node);
     }
 
     b.root.push(json::Animation {
@@ -502,7 +542,8 @@ pub fn write_chain_gltf(
 /// nothing changes visually, and the validator warns otherwise). Everything else (meshes, skins,
 /// materials, textures, existing animations) is kept; the new data is appended to the single
 /// binary buffer. The bake's fps and frame range go into `asset.extras` (see
-/// [`super::playback`]).
+/// [`super::playback`]). The drawn `trail` is added at the root of the default scene, its
+/// reveal keyed in the new animation (see [`write_chain_gltf`]).
 ///
 /// # Errors
 /// Write errors ([`crate::Error::Io`], [`crate::Error::Export`]).
@@ -513,6 +554,7 @@ pub fn write_rig_gltf(
     nodes: &[usize],
     frames: &IkFrames<'_>,
     layer: Option<&NodeFrames<'_>>,
+    trail: &Trail<'_>,
 ) -> Result<Written> {
     let mut b = GltfBuilder::from_parts(doc.root, doc.bin);
     for (i, &node) in nodes.iter().enumerate() {
@@ -529,7 +571,10 @@ pub fn write_rig_gltf(
     }
     lift_skinned_meshes_to_root(&mut b.root);
     if let Some(layer) = layer {
-        let (channels, samplers) = layer_channels(&mut b, frames, layer);
+        let (mut channels, mut samplers) = layer_channels(&mut b, frames, layer);
+        if let Some(node) = trail_nodes(&mut b, frames, trail, &mut channels, &mut samplers) {
+            add_to_scene(&mut b.root, node);
+        }
         b.root.animations.insert(
             0,
             json::Animation {
@@ -554,6 +599,9 @@ pub fn write_rig_gltf(
         .collect();
     let (mut channels, mut samplers) = rotation_channels(&mut b, frames, &animated);
     hold_channels(&mut b, frames, nodes, keyed, &mut channels, &mut samplers);
+    if let Some(node) = trail_nodes(&mut b, frames, trail, &mut channels, &mut samplers) {
+        add_to_scene(&mut b.root, node);
+    }
     b.root.animations.insert(
         0,
         json::Animation {
