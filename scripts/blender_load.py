@@ -1,16 +1,22 @@
-"""Load time, playback time and memory of one glTF in Blender (for docs/caches.md).
+"""Load time, playback time and memory of one bake in Blender (for docs/caches.md).
 
     env -u PYTHONPATH -u PYTHONHOME PATH=/usr/sbin:/usr/bin:/sbin:/bin blender -b \
         --factory-startup --python scripts/blender_load.py -- FILE.glb
     /work/bpy5/bin/python scripts/blender_load.py -- FILE.glb      # Blender 5.x (PyPI bpy)
+    ... -- FILE.usda                       # USD import (Blender builds with USD: 5.x)
+    ... -- INPUT.obj FILE.pc2|FILE.mdd     # the input OBJ with a Mesh Cache modifier
 
-Imports FILE with Blender's glTF importer, then evaluates the first mesh at every frame of the
-scene's range (what playing it costs; shape keys blended by the imported animation), and prints
-the import and playback seconds and the process's peak resident memory, also as its growth over
-the empty scene. One file per process: peak RSS only grows. Without FILE, the empty scene alone.
+Imports FILE (glTF importer; USD importer; or the Wavefront importer and a Mesh Cache modifier
+reading the point cache, frames from 0 at the scene's rate), then evaluates the first mesh at
+every frame of the scene's range (the cache's frame count for a point cache: what playing it
+costs), and prints the import and playback seconds and the process's peak resident memory,
+also as its growth over the empty scene. One file per process: peak RSS only grows. Without
+FILE, the empty scene alone.
 """
 
+import os
 import resource
+import struct
 import sys
 import time
 
@@ -27,9 +33,30 @@ before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 t0 = t1 = t2 = time.perf_counter()
 frames = 0
 if argv:
-    bpy.ops.import_scene.gltf(filepath=argv[0])
-    t1 = time.perf_counter()
     scene = bpy.context.scene
+    ext = os.path.splitext(argv[0])[1].lower()
+    if ext == ".obj":
+        bpy.ops.wm.obj_import(filepath=argv[0])
+        obj = next(o for o in scene.objects if o.type == "MESH")
+        cache = argv[1]
+        mod = obj.modifiers.new("cache", "MESH_CACHE")
+        mod.cache_format = os.path.splitext(cache)[1][1:].upper()
+        mod.filepath = os.path.abspath(cache)
+        mod.time_mode = "FRAME"
+        mod.play_mode = "SCENE"
+        mod.frame_start = 0.0
+        mod.interpolation = "LINEAR"
+        # The cache's frame count: int32 at byte 28 (PC2, little-endian) or 0 (MDD, big-endian).
+        with open(cache, "rb") as f:
+            head = f.read(32)
+        count = (struct.unpack_from("<i", head, 28)[0] if mod.cache_format == "PC2"
+                 else struct.unpack_from(">i", head, 0)[0])
+        scene.frame_start, scene.frame_end = 0, count - 1
+    elif ext in (".usd", ".usda", ".usdc"):
+        bpy.ops.wm.usd_import(filepath=os.path.abspath(argv[0]))
+    else:
+        bpy.ops.import_scene.gltf(filepath=argv[0])
+    t1 = time.perf_counter()
     obj = next(o for o in scene.objects if o.type == "MESH")
     for f in range(scene.frame_start, scene.frame_end + 1):
         scene.frame_set(f)
