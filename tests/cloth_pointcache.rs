@@ -13,7 +13,7 @@ mod common;
 use std::path::Path;
 
 use common::morph::load_morph;
-use common::{fixture, mesh_path, names_in};
+use common::{fixture, mesh_path};
 use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothReport, UpAxis};
 use scenebake::cloth::pins::PinSpec;
 use scenebake::glam::{DVec3, Vec3};
@@ -360,23 +360,13 @@ fn rig_bakes_write_the_garments_frames() {
 
 #[test]
 fn bad_cache_paths_are_refused_before_the_bake_and_write_nothing() {
-    use common::cli::fails_with;
     let dir = tempfile::tempdir().unwrap();
     let d = |name: &str| dir.path().join(name).display().to_string();
     std::fs::write(dir.path().join("a_file"), b"x").unwrap();
     std::fs::create_dir(dir.path().join("a_folder")).unwrap();
     let obj = fixture("cache_sheet.obj").display().to_string();
-    let base = |out: &str| vec!["cloth".to_owned(), obj.clone(), "-o".into(), d(out)];
     let run = |extra: &[&str], out: &str, words: &[&str]| {
-        let mut args = base(out);
-        args.extend(extra.iter().map(|s| s.to_string()));
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        fails_with(&args, words);
-        assert_eq!(
-            names_in(dir.path()),
-            vec!["a_file", "a_folder"],
-            "{extra:?} wrote nothing"
-        );
+        common::cli::cloth_refused(&obj, dir.path(), out, extra, words, &["a_file", "a_folder"])
     };
     let under_file = d("a_file/x.pc2");
     run(

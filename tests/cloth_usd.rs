@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use common::cli::fails_with;
-use common::{crate_dir, fixture, mesh_path, names_in};
+use common::{crate_dir, fixture, mesh_path};
 use scenebake::bake::cloth::{bake_cloth, ClothJob, UpAxis};
 use scenebake::cloth::collide::ColliderSpec;
 use scenebake::cloth::pins::PinSpec;
@@ -236,15 +236,7 @@ fn bad_usd_paths_are_refused_before_the_bake_and_write_nothing() {
     std::fs::create_dir(dir.path().join("a_folder")).unwrap();
     let obj = fixture("cache_sheet.obj").display().to_string();
     let run = |extra: &[&str], out: &str, words: &[&str]| {
-        let mut args = vec!["cloth".to_owned(), obj.clone(), "-o".into(), d(out)];
-        args.extend(extra.iter().map(|s| s.to_string()));
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        fails_with(&args, words);
-        assert_eq!(
-            names_in(dir.path()),
-            vec!["a_file", "a_folder"],
-            "{extra:?} wrote nothing"
-        );
+        common::cli::cloth_refused(&obj, dir.path(), out, extra, words, &["a_file", "a_folder"])
     };
     let usdc = d("out.usdc");
     run(

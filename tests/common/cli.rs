@@ -35,6 +35,24 @@ pub fn fails_with(args: &[&str], words: &[&str]) {
     }
 }
 
+/// Asserts that `scenebake cloth OBJ -o DIR/OUT EXTRA…` fails with every one of `words` and
+/// leaves `dir` holding exactly `kept` (nothing written, not even a temporary).
+#[track_caller]
+pub fn cloth_refused(
+    obj: &str,
+    dir: &std::path::Path,
+    out: &str,
+    extra: &[&str],
+    words: &[&str],
+    kept: &[&str],
+) {
+    let out = dir.join(out).display().to_string();
+    let mut args = vec!["cloth", obj, "-o", &out];
+    args.extend_from_slice(extra);
+    fails_with(&args, words);
+    assert_eq!(super::names_in(dir), kept, "{extra:?} wrote nothing");
+}
+
 /// Sends signal `name` (`INT`, `STOP`, `CONT`...) to process `pid` with kill(1).
 #[cfg(unix)]
 #[track_caller]
