@@ -28,6 +28,7 @@ use openusd::gf::Vec3f;
 use openusd::sdf::{self, ChildrenKey, FieldKey, SpecType, Specifier, Value, Variability};
 
 use crate::error::{Error, Result};
+use crate::export::pointcache::check_point_cache_path;
 use crate::param::Param;
 
 /// The root prim, the layer's default prim.
@@ -52,22 +53,15 @@ pub fn usd_format(path: &Path) -> Option<UsdFormat> {
     }
 }
 
-/// Checks before a bake that `--usd` names a `.usda` file. Whether it can be written is checked
-/// with every other output of the job (`crate::bake::outputs`).
+/// Checks before a bake that `--usd` names a `.usda` file (a file name as every cache's:
+/// [`check_point_cache_path`]). Whether it can be written is checked with every other output of
+/// the job (`crate::bake::outputs`).
 ///
 /// # Errors
 /// [`Error::Param`] naming `--usd` and what is wrong.
 pub fn check_usd_path(path: &Path) -> Result<()> {
+    check_point_cache_path(Param::Usd, path)?;
     let refuse = |what: String| Err(Error::param_value(Param::Usd, what));
-    if path.as_os_str().is_empty() {
-        return refuse("an empty path: give the USD file's name (FILE.usda)".into());
-    }
-    if path.file_name().is_none() {
-        return refuse(format!(
-            "{} names a directory: give the USD file's name (FILE.usda)",
-            path.display()
-        ));
-    }
     match usd_format(path) {
         Some(UsdFormat::Text) => Ok(()),
         Some(UsdFormat::Crate) => refuse(format!(

@@ -682,9 +682,9 @@ fn check_point_cache_options(job: &ClothJob) -> Result<()> {
     }
     for (param, path) in caches {
         let Some(path) = path else { continue };
-        check_point_cache_path(param, path)?;
-        if param == Param::Usd {
-            check_usd_path(path)?;
+        match param {
+            Param::Usd => check_usd_path(path)?,
+            _ => check_point_cache_path(param, path)?,
         }
         let key = same_file_key(path);
         if let Some((other, other_path)) = others.iter().find(|(_, o)| same_file_key(o) == key) {
@@ -1105,11 +1105,12 @@ pub(crate) fn encode_usd_layer(
         return Ok(None);
     };
     let frames = cache.frame_count();
-    let mut scratch = Vec::new();
+    let (mut p64, mut scratch) = (Vec::new(), Vec::new());
     let (mut positions, mut normals) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
     for k in 0..frames {
         let p = cache.frame(k);
-        let p64: Vec<DVec3> = p.iter().map(|p| p.as_dvec3()).collect();
+        p64.clear();
+        p64.extend(p.iter().map(|p| p.as_dvec3()));
         crate::export::shading::angle_weighted_normals(&p64, &mesh.triangles, &mut scratch);
         positions.push(p.to_vec());
         normals.push(scratch.iter().map(|n| n.as_vec3()).collect());
