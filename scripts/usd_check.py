@@ -85,7 +85,11 @@ def main():
     if UsdGeom.GetStageUpAxis(stage) != "Y" or UsdGeom.GetStageMetersPerUnit(stage) != 1.0:
         problems.append("upAxis or metersPerUnit")
     if times is not None and fps:
-        if abs(start - times[0] * fps) > 1e-6 or abs(end - times[-1] * fps) > 1e-6:
+        # glTF key times are float32: a key is as exact as one float32 step at its time.
+        def slack(t):
+            return max(1e-6, 2.0 * fps * float(np.spacing(np.float32(t))))
+        if (abs(start - times[0] * fps) > slack(times[0])
+                or abs(end - times[-1] * fps) > slack(times[-1])):
             problems.append(f"time codes {start}..{end} against the glTF's keys "
                             f"{times[0] * fps}..{times[-1] * fps} (frames)")
     frame_count = int(round(end - start)) + 1

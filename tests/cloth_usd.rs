@@ -199,10 +199,12 @@ fn a_body_sequence_is_a_mesh_with_time_sampled_points() {
     );
 }
 
-/// With `--rig` the layer holds the garment (not the character), its frames the written loop's,
-/// keyed from the animation's start as the glTF is (time code = key time × fps).
+/// With `--rig` the layer holds the garment and the character's skinned mesh (its points at
+/// every frame, as the glTF's skin plays them, read independently by usd_check.py), their frames
+/// the written loops', keyed from the animation's start as the glTF is (time code = key time ×
+/// fps).
 #[test]
-fn a_rig_bake_writes_the_garment() {
+fn a_rig_bake_writes_the_garment_and_the_skinned_body() {
     let dir = tempfile::tempdir().unwrap();
     let job = ClothJob {
         input: Some(fixture("cache_sheet.obj")),
@@ -213,11 +215,12 @@ fn a_rig_bake_writes_the_garment() {
         translate: Some(DVec3::new(3.0, 3.0, 0.0)),
         pin: vec!["box:-10,3.9,-10,10,4.1,10".parse::<PinSpec>().unwrap()],
         usd: Some(dir.path().join("rig.usda")),
+        cycles: 2,
         ..ClothJob::default()
     };
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     let r = report.usd.as_ref().unwrap();
-    assert_eq!(r.prims, ["/World/cache_sheet"]);
+    assert_eq!(r.prims, ["/World/cache_sheet", "/World/Cylinder"]);
     assert!(
         r.time_codes[0] > 0.0,
         "the loop starts after the animation's start"
@@ -226,6 +229,17 @@ fn a_rig_bake_writes_the_garment() {
     let (ok, figures) = usd_check(&python, job.usd.as_ref().unwrap(), &job.output, &[]);
     assert!(ok, "{figures:#}");
     assert_eq!(figures["startTimeCode"].as_f64().unwrap(), r.time_codes[0]);
+    let body = &figures["prims"]["/World/Cylinder"];
+    assert_eq!(body["animated"].as_bool(), Some(true), "{figures:#}");
+    // The garment-only file has no character, so the layer has none either.
+    let job = ClothJob {
+        garment_only: true,
+        output: dir.path().join("garment.glb"),
+        usd: Some(dir.path().join("garment.usda")),
+        ..job
+    };
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    assert_eq!(report.usd.as_ref().unwrap().prims, ["/World/cache_sheet"]);
 }
 
 #[test]

@@ -215,7 +215,12 @@ impl CharacterDrive {
                 .collect();
             return self.skeleton.world(&pose, &self.posed);
         }
-        let t = start + (tau - self.blend_in).rem_euclid(self.cycle());
+        self.world_in_clip(start + (tau - self.blend_in).rem_euclid(self.cycle()))
+    }
+
+    /// Node world transforms at time `t` of the animation itself (seconds on the clip's clock:
+    /// no blend-in, no wrap), the pose a player of the file shows at `t`; document units.
+    pub fn world_in_clip(&self, t: f64) -> Vec<DAffine3> {
         self.skeleton
             .world(&self.skeleton.pose(Some(&self.clip), t), &self.posed)
     }

@@ -12,10 +12,10 @@ use super::{
 };
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::{FrameCache, SolverKind};
-use crate::data::animation::SkinnedMesh;
+use crate::data::animation::{Clip, SkinnedMesh};
 use crate::error::{Error, Result};
 use crate::export::character::{encode_character_gltf, CharacterOptions};
-use crate::export::morph::encode_morph_gltf;
+use crate::export::morph::{encode_morph_gltf, AnimatedBody};
 use crate::export::{MorphOptions, RenderFrames, Written};
 use crate::io::rig::RigDocument;
 use crate::mesh::Mesh;
@@ -104,6 +104,8 @@ pub fn bake_on_character(
         let (lo, hi) = crate::mesh::bounds(&points);
         (hi - lo).length()
     };
+    // The USD layer holds the whole character's skinned meshes, whether they collide or not.
+    let usd_bodies = (job.usd.is_some() && !job.garment_only).then(|| all_bodies.clone());
     let bodies = exclude_bodies(&doc, all_bodies, &job.body_exclude)?;
     let cycle = clip.duration();
     let fps = positive(Param::Fps, job.fps.unwrap_or(super::defaults::FPS))?;
@@ -189,6 +191,10 @@ pub fn bake_on_character(
         static_meshes: Vec::new(),
         start_time: clip.start(),
     };
+    let body_frames = match &usd_bodies {
+        Some(meshes) => skinned_frames(&doc, meshes, &drive, &clip, cache.frame_count(), fps),
+        None => Vec::new(),
+    };
     crate::export::morph::check_cache(&job.output, &model.mesh, &cache)?;
     let frames = RenderFrames::new(&model.mesh, &cache);
     let morph = if job.garment_only {
@@ -208,8 +214,11 @@ pub fn bake_on_character(
         encode_point_caches(job, &model.mesh, &cache, fps, options.start_time)?;
     let mut files = morph.files;
     files.extend(cache_files);
-    // The USD layer holds the garment only: the character's skinned body is not written there.
-    let usd = match encode_usd_layer(job, &model.mesh, &cache, &options, None)? {
+    let usd_body: Vec<AnimatedBody<'_>> = body_frames
+        .iter()
+        .map(|(name, mesh, frames)| AnimatedBody { name, mesh, frames })
+        .collect();
+    let usd = match encode_usd_layer(job, &model.mesh, &cache, &options, &usd_body)? {
         Some((file, report)) => {
             files.push(file);
             Some(report)
@@ -313,6 +322,53 @@ fn check_units(garment: &Mesh, character_diagonal: f64, scale: f64, rig_scale: f
             format!(" {} for the character", scaled_words(rig_scale, -power))
         ),
     ))
+}
+
+/// The character's skinned `meshes` as the written file plays them: `frames` frames at `fps`
+/// from the clip's start (frame k at clip time start + k / fps, loops after the first repeating
+/// it, as the file's looped keys do), in metres, each named after its node (its mesh name where
+/// the node has none).
+fn skinned_frames(
+    doc: &RigDocument,
+    meshes: &[SkinnedMesh],
+    drive: &CharacterDrive,
+    clip: &Clip,
+    frames: usize,
+    fps: f64,
+) -> Vec<(String, Mesh, RenderFrames)> {
+    let per_cycle = ((clip.duration() * fps).round() as usize).max(1);
+    let worlds: Vec<_> = (0..frames)
+        .map(|k| {
+            let into = if k > 0 && k % per_cycle == 0 {
+                per_cycle
+            } else {
+                k % per_cycle
+            };
+            drive.world_in_clip(clip.start() + into as f64 / fps)
+        })
+        .collect();
+    meshes
+        .iter()
+        .map(|m| {
+            let at = |world| -> Vec<DVec3> {
+                m.deform(world)
+                    .into_iter()
+                    .map(|p| p * drive.scale)
+                    .collect()
+            };
+            let mesh = Mesh::from_triangles(m.name.clone(), at(&worlds[0]), m.triangles.clone());
+            let mut cache = FrameCache::new(m.positions.len());
+            for world in &worlds {
+                cache.push(&at(world));
+            }
+            let name = doc.root.nodes[m.node]
+                .name
+                .clone()
+                .unwrap_or_else(|| m.name.clone());
+            let frames = RenderFrames::new(&mesh, &cache);
+            (name, mesh, frames)
+        })
+        .collect()
 }
 
 /// The body meshes less those `exclude` names (a mesh name, or a node as `NAME`, `#N` or

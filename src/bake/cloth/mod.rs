@@ -1093,13 +1093,14 @@ fn encode_point_caches(
 }
 
 /// Encodes the USD layer `--usd` asks for: the cloth (`cache`'s frames of `mesh`'s particles,
-/// frame k at time code `start_time × fps + k`), the static meshes and the body, when given.
+/// frame k at time code `start_time × fps + k`), the static meshes and the moving `bodies` (a
+/// mesh sequence, a character's skinned meshes), each a mesh with time-sampled points.
 pub(crate) fn encode_usd_layer(
     job: &ClothJob,
     mesh: &Mesh,
     cache: &crate::cloth::FrameCache,
     options: &MorphOptions,
-    body: Option<AnimatedBody<'_>>,
+    bodies: &[AnimatedBody<'_>],
 ) -> Result<Option<(File, UsdReport)>> {
     let Some(path) = &job.usd else {
         return Ok(None);
@@ -1136,7 +1137,7 @@ pub(crate) fn encode_usd_layer(
             double_sided: false,
         }
     }));
-    if let Some(body) = body {
+    for body in bodies {
         let n = body.frames.frame_count();
         meshes.push(UsdMesh {
             name: body.name.to_owned(),
@@ -1242,7 +1243,7 @@ fn export(
     let (cache_files, point_caches) =
         encode_point_caches(job, &model.mesh, cache, options.fps, options.start_time)?;
     files.extend(cache_files);
-    let usd = match encode_usd_layer(job, &model.mesh, cache, &options, body)? {
+    let usd = match encode_usd_layer(job, &model.mesh, cache, &options, body.as_slice())? {
         Some((file, report)) => {
             files.push(file);
             Some(report)
