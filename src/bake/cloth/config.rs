@@ -269,8 +269,8 @@ pub struct ClothJob {
     pub mdd: Option<PathBuf>,
     /// Also write a USD layer (text .usda; for Blender's USD import, Houdini, usdview): the cloth
     /// as a mesh with time-sampled points and normals (the --pc2 points: every frame from frame 0,
-    /// frame k at time code k, the bake's fps), the colliders as static meshes and a --body
-    /// sequence as a mesh with time-sampled points, in metres, +Y up.
+    /// frame k at time code k, the bake's fps), the colliders as static meshes, and a --body
+    /// sequence or a --rig character's skinned meshes with time-sampled points, in metres, +Y up.
     #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.usda"))]
     pub usd: Option<PathBuf>,
     /// Keep only the frames needed for linear playback to reproduce every baked frame within T
