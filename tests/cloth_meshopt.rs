@@ -3,9 +3,14 @@
 //! uncompressed file's view (triangles up to a rotation of their corners, which the index codec
 //! may apply); the file declares the extension as required, with a fallback buffer. (three.js's MeshoptDecoder playing it is checked in scripts/viewer_check.sh.)
 
+mod common;
+
 use std::path::Path;
 
-use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothSource};
+use common::{fixture, mesh_path};
+use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothSource, Switch};
+use scenebake::cloth::pins::PinSpec;
+use scenebake::glam::DVec3;
 use scenebake::export::{BasisSize, Compression, QuantizeMode};
 use serde_json::{json, Value};
 
@@ -168,4 +173,52 @@ fn meshopt_views_decode_to_the_uncompressed_bytes() {
     bake_cloth(&basis, &mut |_, _| {}).unwrap();
     // (A small file, mostly JSON.)
     assert!(same_data_smaller(&plain, &packed, 0.8) >= 3);
+}
+
+/// A bake on a character (`--rig`) compresses its glTF too: skin, joints, weights and the
+/// garment's morph cache decode to the uncompressed file's bytes, and `--max-targets` is held to.
+#[test]
+fn a_character_bake_is_compressed_and_keeps_its_target_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("plain.glb");
+    let packed = dir.path().join("packed.glb");
+    let job = ClothJob {
+        input: Some(fixture("cache_sheet.obj")),
+        output: plain.clone(),
+        rig: Some(mesh_path("RiggedSimple.gltf")),
+        pin_to: Some("Bone.001".into()),
+        body_collider: Switch::Off,
+        translate: Some(DVec3::new(3.0, 3.0, 0.0)),
+        pin: vec!["box:-10,3.9,-10,10,4.1,10".parse::<PinSpec>().unwrap()],
+        ..ClothJob::default()
+    };
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let targets = report.cache.stats.targets;
+    assert!(targets > 10, "{targets} targets");
+    let job = ClothJob {
+        output: packed.clone(),
+        compress: Compression::Meshopt,
+        ..job
+    };
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    assert_eq!(
+        report.cache.gltf_bytes,
+        std::fs::metadata(&packed).unwrap().len()
+    );
+    // (Mostly JSON: the skin, its joints and one accessor per morph target.)
+    assert!(same_data_smaller(&plain, &packed, 0.95) >= 10);
+
+    let job = ClothJob {
+        max_targets: Some(targets - 1),
+        output: dir.path().join("limited.glb"),
+        ..job
+    };
+    let err = bake_cloth(&job, &mut |_, _| {}).unwrap_err().to_string();
+    assert!(
+        err.contains("max_targets")
+            && err.contains(&format!("needs {targets} targets"))
+            && !err.contains("basis"),
+        "{err}"
+    );
+    assert!(!job.output.exists());
 }

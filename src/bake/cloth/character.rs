@@ -6,7 +6,7 @@ use glam::DVec3;
 use std::time::Instant;
 
 use super::{
-    check_export_options, encode_point_caches, encode_usd_layer, length_words, prepare_cloth,
+    check_export_options, check_target_count, compress, encode_point_caches, encode_usd_layer, length_words, prepare_cloth,
     quality_report, report, scaled_words, simulate_on_body, CacheReport, CharacterReport, ClothJob,
     ClothReport, Exported, PreparedCloth, Switch,
 };
@@ -207,12 +207,13 @@ pub fn bake_on_character(
         };
         encode_character_gltf(&job.output, doc, &model.mesh, &frames, &options, &character)?
     };
-    let gltf_bytes = morph.files.iter().map(|(_, b)| b.len() as u64).sum();
+    check_target_count(job, morph.stats.targets, false)?;
+    let mut files = compress(job, morph.files)?;
+    let gltf_bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
     // The caches hold the written loops as the glTF's garment mesh does (metres; the glTF's
     // garment node scales them by 1 / --rig-scale), keyed on the animation's times.
     let (cache_files, point_caches) =
         encode_point_caches(job, &model.mesh, &cache, fps, options.start_time)?;
-    let mut files = morph.files;
     files.extend(cache_files);
     let usd_body: Vec<AnimatedBody<'_>> = body_frames
         .iter()

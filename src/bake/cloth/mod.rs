@@ -1166,6 +1166,41 @@ pub(crate) fn encode_usd_layer(
     Ok(Some(((encoded.path, encoded.bytes), report)))
 }
 
+/// Refuses a per-frame morph cache of more targets than `--max-targets` allows, suggesting a
+/// basis where the bake can write one (`basis_possible`) and a larger keyframe tolerance.
+pub(crate) fn check_target_count(
+    job: &ClothJob,
+    targets: usize,
+    basis_possible: bool,
+) -> Result<()> {
+    let Some(n) = job.max_targets.filter(|&n| targets > n) else {
+        return Ok(());
+    };
+    let head = format!("{n}: the cache needs {targets} targets (one per kept frame); use ");
+    let message = if basis_possible {
+        text!(
+            head,
+            Param::Basis,
+            " auto, or a larger ",
+            Param::KeyframeTolerance
+        )
+    } else {
+        text!(head, "a larger ", Param::KeyframeTolerance)
+    };
+    Err(Error::param_value(Param::MaxTargets, message))
+}
+
+/// The glTF's files after `--compress`: as encoded, or with EXT_meshopt_compression.
+pub(crate) fn compress(
+    job: &ClothJob,
+    files: Vec<(std::path::PathBuf, Vec<u8>)>,
+) -> Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
+    match job.compress {
+        Compression::None => Ok(files),
+        Compression::Meshopt => compress_files(&job.output, files),
+    }
+}
+
 /// Encodes the morph glTF and, when asked, the VAT, then writes them all as one atomic set.
 fn export(
     job: &ClothJob,
@@ -1193,27 +1228,11 @@ fn export(
         None => {
             let morph =
                 encode_morph_gltf_with_body(&job.output, &model.mesh, &frames, &options, body)?;
-            if let Some(n) = job.max_targets.filter(|&n| morph.stats.targets > n) {
-                return Err(Error::param_value(
-                    Param::MaxTargets,
-                    text!(
-                        format!(
-                            "{n}: the cache needs {} targets (one per kept frame); use ",
-                            morph.stats.targets
-                        ),
-                        Param::Basis,
-                        " auto, or a larger ",
-                        Param::KeyframeTolerance
-                    ),
-                ));
-            }
+            check_target_count(job, morph.stats.targets, true)?;
             (morph, None)
         }
     };
-    let mut files = match job.compress {
-        Compression::None => morph.files,
-        Compression::Meshopt => compress_files(&job.output, morph.files)?,
-    };
+    let mut files = compress(job, morph.files)?;
     let gltf_bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
     let vat = match &job.vat {
         Some(path) => {
