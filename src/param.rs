@@ -78,6 +78,8 @@ params! {
     JamStrain => "jam_strain",
     /// The rest shape of a fabric's bending.
     BendRest => "bend_rest",
+    /// How a fabric resists stretch.
+    Membrane => "membrane",
     /// The labs' spring stiffness.
     Stiffness => "stiffness",
     /// The labs' bending-spring stiffness.

@@ -19,6 +19,7 @@
 //! then by conjugate gradients preconditioned with Ã), and particles that entered a collider are
 //! moved back out after each correction.
 
+use super::term::Term;
 use glam::DVec3;
 use sprs::CsMat;
 
@@ -151,8 +152,16 @@ impl FastSolver {
     /// pseudo-random error, [`correction_rate`]), and in f64 otherwise.
     ///
     /// # Errors
-    /// [`crate::Error::Factorisation`] when the matrix cannot be factored.
+    /// [`crate::Error::Factorisation`] when the matrix cannot be factored;
+    /// [`crate::Error::Param`] for a system with a triangle membrane, which the local steps do
+    /// not model.
     pub fn new(sys: ReducedSystem, iterations: usize) -> Result<Self> {
+        if !sys.membrane.is_empty() {
+            return Err(crate::Error::param_value(
+                crate::param::Param::Membrane,
+                "triangles: the fast solver models edge springs only",
+            ));
+        }
         let upper = Self::matrix(&sys);
         let exact = Cholesky::new(&upper)?;
         for drop in SINGLE_DROP_RELATIVE {

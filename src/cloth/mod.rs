@@ -14,6 +14,7 @@ pub mod factor;
 pub(crate) mod factor;
 pub mod fast;
 pub mod material;
+pub mod membrane;
 pub mod model;
 pub mod newton;
 pub mod pins;
@@ -24,6 +25,7 @@ pub mod smooth;
 mod split;
 pub mod springs;
 pub mod system;
+pub mod term;
 pub mod wind;
 
 use std::time::Instant;

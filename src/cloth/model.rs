@@ -3,6 +3,7 @@
 use glam::DVec3;
 
 use super::material::BendStencil;
+use super::membrane::MembraneTriangle;
 use super::springs::{Spring, SpringSet};
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -18,6 +19,8 @@ pub struct ClothModel {
     pub springs: Vec<Spring>,
     /// Quadratic bending stencils (material models; the labs' models bend with springs).
     pub bending: Vec<BendStencil>,
+    /// Triangle membrane (`--membrane triangles`; empty for edge springs).
+    pub membrane: Vec<MembraneTriangle>,
     /// Compression strain past which springs softer in compression than in tension jam (a
     /// fraction of the rest length, in (0, 1); [`SpringSet::jam_strain`]).
     pub jam_strain: f64,
@@ -81,6 +84,7 @@ impl ClothModel {
             jam_strain: springs.jam_strain,
             springs: springs.springs,
             bending: Vec::new(),
+            membrane: Vec::new(),
             mass,
             pinned,
             warnings: warnings.into_iter().map(Into::into).collect(),
@@ -104,6 +108,27 @@ impl ClothModel {
             ));
         }
         self.bending = bending;
+        Ok(self)
+    }
+
+    /// Adds a triangle membrane (see [`super::membrane`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] when a triangle names a particle out of range or has a
+    /// non-finite weight or stiffness.
+    pub fn with_membrane(mut self, membrane: Vec<MembraneTriangle>) -> Result<Self> {
+        let n = self.particle_count();
+        if let Some(t) = membrane.iter().find(|t| {
+            t.corners.iter().any(|&v| v as usize >= n)
+                || !t.fibres.iter().flatten().all(|w| w.is_finite())
+                || !(t.stiffness.is_finite() && t.compression.is_finite())
+        }) {
+            return Err(Error::invalid(
+                &self.mesh.name,
+                format!("invalid membrane triangle {t:?}"),
+            ));
+        }
+        self.membrane = membrane;
         Ok(self)
     }
 

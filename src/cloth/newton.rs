@@ -89,7 +89,8 @@ use super::factor::analyse_upper;
 use super::self_contact::SelfContact;
 use super::smooth::{Smoother, SweepScratch};
 use super::split::SplitCholesky;
-use super::system::{BendCoupling, ReducedSystem, OPPOSITE, PINNED};
+use super::system::{spring_terms, BendCoupling, ReducedSystem, OPPOSITE, PINNED};
+use super::term::{Local, Term};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
 
@@ -252,6 +253,9 @@ pub struct NewtonSolver {
     /// Per bending stencil and vertex pair (0,1), (0,2), (0,3), (1,2), (1,3), (2,3): the pair's
     /// off-diagonal block, `None` where either vertex is pinned or both are the same particle.
     bend_off: Vec<[Option<BlockCols>; 6]>,
+    /// Per membrane triangle and corner pair [`TRIANGLE_PAIRS`]: the pair's off-diagonal block,
+    /// `None` where either corner is pinned.
+    membrane_off: Vec<[Option<BlockCols>; 3]>,
     symbolic: SymbolicCholesky<usize>,
     l_values: Vec<f64>,
     /// The Hessian's values rounded to single precision, and their factor (see
@@ -356,6 +360,7 @@ impl NewtonSolver {
                 .zip(&sp.b)
                 .map(|(&a, &b)| (a, b))
                 .chain(sys.bends.pairs(coupling).map(|(a, b)| (a as u32, b as u32)))
+                .chain(sys.membrane.pairs())
                 .collect();
         let mut start = vec![0u32; n + 1];
         for &(a, b) in &pairs {
@@ -431,6 +436,18 @@ impl NewtonSolver {
                 Ok(out)
             })
             .collect::<Result<Vec<_>>>()?;
+        let membrane_off = (0..sys.membrane.len())
+            .map(|e| {
+                let v = sys.membrane.vertices(e);
+                let mut out = [None; 3];
+                for (slot, &(a, b)) in TRIANGLE_PAIRS.iter().enumerate() {
+                    if v[a] != PINNED && v[b] != PINNED && v[a] != v[b] {
+                        out[slot] = Some(block(v[a], v[b])?);
+                    }
+                }
+                Ok(out)
+            })
+            .collect::<Result<Vec<_>>>()?;
         drop(neighbours);
         let split = bending == BendingFactor::Split
             && sys.bends.v.iter().any(|v| opposite_split(v).is_some());
@@ -483,6 +500,7 @@ impl NewtonSolver {
             diag,
             off,
             bend_off,
+            membrane_off,
             grad: vec![DVec3::ZERO; n],
             dx: vec![0.0; dim],
             trial: vec![DVec3::ZERO; n],
@@ -577,7 +595,9 @@ impl NewtonSolver {
     /// sweeps would not respect.
     pub fn with_sweeps(mut self, sweeps: usize) -> Self {
         self.sweeps = sweeps;
-        self.smoother = (sweeps > 0).then(|| Smoother::new(&self.sys));
+        // The sweeps relax springs and bending only: with a membrane, Newton runs alone.
+        self.smoother =
+            (sweeps > 0 && self.sys.membrane.is_empty()).then(|| Smoother::new(&self.sys));
         self
     }
 
@@ -937,6 +957,7 @@ impl NewtonSolver {
                 }
             }
         }
+        add_term(&self.sys.membrane, &self.membrane_off, &self.diag, x, grad, values);
         if let Some(contact) = &self.contact {
             let diag = &self.diag;
             contact.add_derivatives(x, grad, |i, he| add_diag(values, &diag[i], &he));
@@ -1283,29 +1304,6 @@ impl NewtonSolver {
     }
 }
 
-/// The gradient f·u and the projected Hessian block of one spring, as rows: df/d|r| along u
-/// and f/|r| across it, the latter clamped at zero for a compressed spring (whose exact
-/// transverse term is negative), so every block is positive semi-definite.
-#[inline(always)]
-fn spring_terms(r: DVec3, rest: f64, k: f64, kc: f64, jam: f64) -> (DVec3, [[f64; 3]; 3]) {
-    let len = r.length();
-    if len > 0.0 {
-        let (f, along) = super::system::spring_response(len, rest, k, kc, jam);
-        let u = r / len;
-        let t = (f / len).max(0.0);
-        let p = along - t;
-        let he = [
-            [t + p * u.x * u.x, p * u.x * u.y, p * u.x * u.z],
-            [p * u.y * u.x, t + p * u.y * u.y, p * u.y * u.z],
-            [p * u.z * u.x, p * u.z * u.y, t + p * u.z * u.z],
-        ];
-        (u * f, he)
-    } else {
-        // Coincident ends: no force and no defined direction; the inertia keeps H definite.
-        (DVec3::ZERO, [[0.0; 3]; 3])
-    }
-}
-
 /// Sᵢ B Sⱼ with S = I − n nᵀ for a normal, I for none.
 fn project_block(b: [[f64; 3]; 3], ni: Option<DVec3>, nj: Option<DVec3>) -> [[f64; 3]; 3] {
     let mut b = b;
@@ -1386,6 +1384,45 @@ fn add_diag(values: &mut [f64], d: &BlockCols, he: &[[f64; 3]; 3]) {
     values[d2] += he[0][2];
     values[d2 + 1] += he[1][2];
     values[d2 + 2] += he[2][2];
+}
+
+/// A triangle's corner pairs, in the order of [`NewtonSolver`]'s per-triangle block slots.
+const TRIANGLE_PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+/// Adds a three-corner term's gradient to `grad` and its Hessian blocks to the upper-triangle
+/// `values`, through each element's block slots `off` ([`TRIANGLE_PAIRS`]) and the diagonal
+/// blocks `diag`.
+fn add_term(
+    term: &dyn Term,
+    off: &[[Option<BlockCols>; 3]],
+    diag: &[BlockCols],
+    x: &[DVec3],
+    grad: &mut [DVec3],
+    values: &mut [f64],
+) {
+    let mut local = Local::default();
+    for (e, slots) in off.iter().enumerate() {
+        term.derivatives(e, x, &mut local);
+        let v = term.vertices(e);
+        for a in 0..3 {
+            if v[a] != PINNED {
+                grad[v[a] as usize] += local.gradient[a];
+                add_diag(values, &diag[v[a] as usize], &local.hessian[a][a]);
+            }
+        }
+        for (slot, &(a, b)) in TRIANGLE_PAIRS.iter().enumerate() {
+            if let Some(o) = slots[slot] {
+                // The slot holds block (lo, hi) as column c of hi, rows r of lo.
+                let (lo, hi) = if v[a] < v[b] { (a, b) } else { (b, a) };
+                let h = &local.hessian[lo][hi];
+                for (c, &oc) in o.iter().enumerate() {
+                    for (r, row) in h.iter().enumerate() {
+                        values[oc as usize + r] += row[c];
+                    }
+                }
+            }
+        }
+    }
 }
 
 fn index32(i: usize) -> Result<u32> {
@@ -1786,6 +1823,58 @@ mod tests {
         }
     }
 
+    /// A cotton sheet of `n` × `n` particles, 0.1 m wide, with the triangle membrane instead of
+    /// edge springs, its two corners pinned or not.
+    fn membrane_sheet(n: u32, pins: bool) -> (ReducedSystem, Vec<DVec3>) {
+        use crate::cloth::material::{fabric_model_terms, MaterialPreset};
+        use crate::cloth::membrane::membrane_triangles;
+        let mut lab = lab_cloth(n, 100.0);
+        let pinned = if pins {
+            lab.pinned_flags()
+        } else {
+            vec![false; lab.mesh.positions.len()]
+        };
+        for p in &mut lab.mesh.positions {
+            *p *= 0.1;
+        }
+        let material = MaterialPreset::Cotton.material();
+        let terms = fabric_model_terms(&lab.mesh, &material);
+        let (membrane, _) = membrane_triangles(&lab.mesh, &material);
+        let count = lab.mesh.positions.len();
+        let mass = vec![0.15 * 0.01 / count as f64; count];
+        let model = crate::cloth::ClothModel::new(lab.mesh, Default::default(), mass, pinned)
+            .unwrap()
+            .with_bending(terms.bending)
+            .unwrap()
+            .with_membrane(membrane)
+            .unwrap();
+        let sys = ReducedSystem::new(&model, StepParams::garment()).unwrap();
+        let x = sys.gather(model.positions());
+        (sys, x)
+    }
+
+    /// The membrane goes through the same assembly: the Newton solver's gradient is the
+    /// system's (pins included), and where every fibre is stretched its Hessian is the
+    /// derivative of that gradient.
+    #[test]
+    fn a_membrane_sheet_assembles_its_gradient_and_hessian() {
+        let (sys, x) = membrane_sheet(5, true);
+        assert!(!sys.membrane.is_empty() && sys.springs.a.is_empty());
+        let x = perturbed(&x);
+        let y: Vec<DVec3> = x.iter().map(|p| *p + DVec3::new(0.0, -0.01, 0.0)).collect();
+        let mut want = vec![DVec3::ZERO; x.len()];
+        sys.gradient(&x, &y, &mut want);
+        let mut solver = NewtonSolver::new(sys, DEFAULT_TOLERANCE, DEFAULT_MAX_ITERATIONS).unwrap();
+        solver.y.copy_from_slice(&y);
+        solver.assemble(&x);
+        for (got, want) in solver.grad.iter().zip(&want) {
+            assert!((*got - *want).length() < 1e-9 * (1.0 + want.length()), "{got} vs {want}");
+        }
+        let (sys, x) = membrane_sheet(4, false);
+        let x: Vec<DVec3> = x.iter().map(|p| x[0] + (*p - x[0]) * 1.1).collect();
+        hessian_is_the_gradients_derivative(sys, &x);
+    }
+
     /// Where no spring is compressed the clamp is inactive, so H must be the exact derivative of
     /// the gradient: compare H·e with central differences of ∇g.
     #[test]
@@ -1795,11 +1884,22 @@ mod tests {
         let (sys, x) = lab_system_pinned(4, false);
         // Uniform stretch by 10 % about the first particle: every spring is longer than rest.
         let x: Vec<DVec3> = x.iter().map(|p| x[0] + (*p - x[0]) * 1.1).collect();
-        let y = x.clone();
+        hessian_is_the_gradients_derivative(sys, &x);
+    }
+
+    /// The assembled Hessian at `x` (with y = x; bending stencils factored whole) against
+    /// central differences of ∇g.
+    fn hessian_is_the_gradients_derivative(sys: ReducedSystem, x: &[DVec3]) {
+        let y = x.to_vec();
         let n = x.len();
-        let mut solver =
-            NewtonSolver::new(sys.clone(), DEFAULT_TOLERANCE, DEFAULT_MAX_ITERATIONS).unwrap();
-        let trip = solver.hessian_triplets(&x);
+        let mut solver = NewtonSolver::with_bending_factor(
+            sys.clone(),
+            DEFAULT_TOLERANCE,
+            DEFAULT_MAX_ITERATIONS,
+            BendingFactor::Whole,
+        )
+        .unwrap();
+        let trip = solver.hessian_triplets(x);
         let mut dense = vec![0.0; 9 * n * n];
         for &(r, c, v) in &trip {
             dense[r * 3 * n + c] += v;
@@ -1810,8 +1910,8 @@ mod tests {
         let eps = 1e-6;
         let (mut gp, mut gm) = (vec![DVec3::ZERO; n], vec![DVec3::ZERO; n]);
         for col in 0..3 * n {
-            let mut xp = x.clone();
-            let mut xm = x.clone();
+            let mut xp = x.to_vec();
+            let mut xm = x.to_vec();
             xp[col / 3][col % 3] += eps;
             xm[col / 3][col % 3] -= eps;
             sys.gradient(&xp, &y, &mut gp);

@@ -18,6 +18,8 @@ use glam::DVec3;
 
 use super::factor::fill_reducing_order;
 use super::material::{from_frame, hinge_frame};
+use super::membrane::Membrane;
+use super::term::Term;
 use super::model::ClothModel;
 use crate::error::Result;
 
@@ -189,6 +191,8 @@ pub struct ReducedSystem {
     pub anchors: Anchors,
     /// Quadratic bending stencils.
     pub bends: FreeBends,
+    /// The triangle membrane (empty for edge springs).
+    pub membrane: Membrane,
     /// Compression strain past which a spring softer in compression jams (a fraction of its rest
     /// length; [`ClothModel::jam_strain`]).
     pub jam_strain: f64,
@@ -233,7 +237,11 @@ impl ReducedSystem {
             .bending
             .iter()
             .flat_map(|s| stencil_pairs(s.vertices, coupling));
-        let pairs = spring_pairs.chain(bend_pairs).filter_map(|(a, b)| {
+        let membrane_pairs = model.membrane.iter().flat_map(|t| {
+            let [a, b, c] = t.corners;
+            [(a, b), (a, c), (b, c)]
+        });
+        let pairs = spring_pairs.chain(bend_pairs).chain(membrane_pairs).filter_map(|(a, b)| {
             let (a, b) = (solver_of[a as usize], solver_of[b as usize]);
             (a != u32::MAX && b != u32::MAX && a != b).then_some((a as usize, b as usize))
         });
@@ -297,6 +305,12 @@ impl ReducedSystem {
                 bends.pinned_sum.push(fixed);
             }
         }
+        let membrane = Membrane::new(
+            &model.membrane,
+            &solver_of,
+            &model.mesh.positions,
+            model.jam_strain,
+        );
         let mass = particle_of
             .iter()
             .map(|&p| model.mass[p as usize])
@@ -315,6 +329,7 @@ impl ReducedSystem {
             springs,
             anchors,
             bends,
+            membrane,
             jam_strain: model.jam_strain,
         })
     }
@@ -339,6 +354,7 @@ impl ReducedSystem {
     /// see. A pin driven along a path (a garment's waist on a walking character) calls this
     /// before each step with the pins' positions at the end of the step.
     pub fn move_pins(&mut self, all: &[DVec3]) {
+        self.membrane.move_pins(all);
         for (at, &p) in self.anchors.at.iter_mut().zip(&self.anchors.pinned) {
             *at = all[p as usize];
         }
@@ -427,7 +443,7 @@ impl ReducedSystem {
         let bend: f64 = (0..b.len())
             .map(|s| 0.5 * b.value(s, x).length_squared())
             .sum();
-        inertia + spring + anchor + bend
+        inertia + spring + anchor + bend + self.membrane.total_energy(x)
     }
 
     /// The gradient ∇g(x) (newtons), written into `grad`.
@@ -456,6 +472,7 @@ impl ReducedSystem {
             );
         }
         self.add_bending_gradient(x, grad);
+        self.membrane.add_gradient(x, grad);
     }
 
     /// Adds the bending stencils' gradient wᵢ·(Σ wⱼ xⱼ + fixed) to `grad` (N).
@@ -598,6 +615,29 @@ fn ramp_integral2(t: f64, lo: f64, hi: f64) -> f64 {
         w * w * s.powi(4) * (0.25 - 0.1 * s)
     } else {
         0.15 * w * w + 0.5 * w * (t - hi) + 0.5 * (t - hi) * (t - hi)
+    }
+}
+
+/// The gradient f·u and the projected Hessian block of one spring, as rows: df/d|r| along u
+/// and f/|r| across it, the latter clamped at zero for a compressed spring (whose exact
+/// transverse term is negative), so every block is positive semi-definite.
+#[inline(always)]
+pub(crate) fn spring_terms(r: DVec3, rest: f64, k: f64, kc: f64, jam: f64) -> (DVec3, [[f64; 3]; 3]) {
+    let len = r.length();
+    if len > 0.0 {
+        let (f, along) = spring_response(len, rest, k, kc, jam);
+        let u = r / len;
+        let t = (f / len).max(0.0);
+        let p = along - t;
+        let he = [
+            [t + p * u.x * u.x, p * u.x * u.y, p * u.x * u.z],
+            [p * u.y * u.x, t + p * u.y * u.y, p * u.y * u.z],
+            [p * u.z * u.x, p * u.z * u.y, t + p * u.z * u.z],
+        ];
+        (u * f, he)
+    } else {
+        // Coincident ends: no force and no defined direction; the inertia keeps H definite.
+        (DVec3::ZERO, [[0.0; 3]; 3])
     }
 }
 

@@ -9,6 +9,7 @@ use glam::DVec3;
 
 use crate::cloth::collide::{ColliderSpec, ContactModel, DEFAULT_FRICTION};
 use crate::cloth::material::{BendRest, MaterialPreset};
+use crate::cloth::membrane::MembraneModel;
 use crate::cloth::pins::PinSpec;
 use crate::cloth::SolverKind;
 use crate::error::{Error, Result};
@@ -204,6 +205,11 @@ pub struct ClothJob {
     #[cfg_attr(feature = "cli", arg(long, value_enum, value_name = "REST"))]
     #[serde(alias = "bend-rest")]
     pub bend_rest: Option<BendRest>,
+    /// How the fabric resists stretch: `springs` on the mesh's edges, or `triangles`, a
+    /// membrane whose response does not depend on the triangulation (irregular and scanned
+    /// meshes; Newton only) [default: springs].
+    #[cfg_attr(feature = "cli", arg(long, value_enum, value_name = "MODEL"))]
+    pub membrane: Option<MembraneModel>,
     /// Every spring's stiffness in N/m, symmetric in tension and compression: the labs' model
     /// instead of a material [lab-cloth 100; .tet 1000].
     #[cfg_attr(feature = "cli", arg(long, value_name = "K"))]
@@ -513,6 +519,7 @@ impl Default for ClothJob {
             compression: None,
             jam_strain: None,
             bend_rest: None,
+            membrane: None,
             stiffness: None,
             bend_stiffness: None,
             damping: None,

@@ -20,6 +20,7 @@ use crate::cloth::collide::{
     Collider, Colliders, ContactModel, MeshCollider, DEFAULT_THICKNESS_FRACTION,
 };
 use crate::cloth::material::{fabric_model_terms, DEFAULT_JAM_STRAIN, DEFAULT_MATERIAL};
+use crate::cloth::membrane::{membrane_triangles, MembraneModel};
 use crate::cloth::model::{masses_from_area, masses_from_volume};
 use crate::cloth::pins::pinned_flags;
 use crate::cloth::preset::{self, lab_cloth};
@@ -104,6 +105,13 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
              filtered solve (choose the newton solver, or leave the contact model out)",
         ));
     }
+    if job.membrane == Some(MembraneModel::Triangles) && job.solver == SolverKind::Fast {
+        return Err(Error::param_value(
+            Param::Membrane,
+            "triangles: the triangle membrane is part of Newton's solve; the fast solver has \
+             springs only (choose the newton solver)",
+        ));
+    }
     if job.self_contact == Switch::On && job.solver == SolverKind::Fast {
         return Err(Error::param_value(
             Param::SelfContact,
@@ -138,6 +146,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         (Param::Compression, job.compression.is_some()),
         (Param::JamStrain, job.jam_strain.is_some()),
         (Param::BendRest, job.bend_rest.is_some()),
+        (Param::Membrane, job.membrane.is_some()),
     ]
     .into_iter()
     .find_map(|(name, given)| given.then_some(name));
@@ -214,6 +223,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
 
     // Set where the body takes the fabric model (a surface file without --stiffness).
     let (mut bending, mut uses_material) = (Vec::new(), false);
+    let (mut membrane, mut membrane_warning) = (Vec::new(), None);
     let mut merged_objects = None;
     let (mesh, springs, mut pinned): (Mesh, SpringSet, Vec<bool>) = match &source {
         ClothSource::LabCloth { resolution } => {
@@ -289,7 +299,22 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
                 let terms = fabric_model_terms(&mesh, &material.material);
                 bending = terms.bending;
                 uses_material = true;
-                terms.springs
+                if job.membrane == Some(MembraneModel::Triangles) {
+                    let (triangles, skipped) = membrane_triangles(&mesh, &material.material);
+                    membrane = triangles;
+                    if skipped > 0 {
+                        membrane_warning = Some(text!(format!(
+                            "{skipped} triangles of zero area carry no membrane"
+                        )));
+                    }
+                    SpringSet {
+                        jam_strain: terms.springs.jam_strain,
+                        skipped_zero_length: terms.springs.skipped_zero_length,
+                        ..SpringSet::default()
+                    }
+                } else {
+                    terms.springs
+                }
             };
             let n = mesh.particle_count();
             (mesh, springs, vec![false; n])
@@ -320,7 +345,10 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         shear: springs.count(SpringKind::Shear),
         bend: springs.count(SpringKind::Bend),
     };
-    let mut model = ClothModel::new(mesh, springs, mass, pinned)?.with_bending(bending)?;
+    let mut model = ClothModel::new(mesh, springs, mass, pinned)?
+        .with_bending(bending)?
+        .with_membrane(membrane)?;
+    model.warnings.extend(membrane_warning);
     model.warnings.extend(merged_objects);
     if matches!(source, ClothSource::File(_)) {
         model
