@@ -67,6 +67,41 @@ fn options_that_do_not_apply_to_the_input_are_errors() {
     );
 }
 
+/// The triangle membrane is a fabric model of Newton's: with the fast solver, the labs'
+/// springs or their preset it is an error naming the option, before anything is written.
+#[test]
+fn the_triangle_membrane_is_refused_where_it_does_not_apply() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = s(&crate_path("meshes/plane_30x30.obj"));
+    fails_exactly(
+        dir.path(),
+        &["cloth", &obj, "--membrane", "triangles", "--solver", "fast", "-o", "x.glb"],
+        "error: invalid value for --membrane: triangles: the triangle membrane is part of Newton's solve; the fast solver has springs only (choose the newton solver)",
+    );
+    fails_exactly(
+        dir.path(),
+        &["cloth", &obj, "--membrane", "triangles", "--stiffness", "100", "-o", "x.glb"],
+        "error: invalid value for --membrane: --stiffness sets the labs' symmetric springs (N/m per spring); --membrane sets a fabric mapped onto the mesh: give one or the other",
+    );
+    let (code, _, err) = run(
+        dir.path(),
+        &[
+            "cloth",
+            "--preset",
+            "lab-cloth",
+            "--membrane",
+            "triangles",
+            "-o",
+            "x.glb",
+        ],
+    );
+    assert_eq!(code, 1);
+    assert!(
+        err.starts_with("error: invalid value for --membrane: the lab-cloth preset"),
+        "{err}"
+    );
+}
+
 #[test]
 fn an_absurd_frame_count_is_refused_before_baking() {
     let dir = tempfile::tempdir().unwrap();

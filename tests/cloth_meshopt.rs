@@ -10,8 +10,8 @@ use std::path::Path;
 use common::{fixture, mesh_path};
 use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothSource, Switch};
 use scenebake::cloth::pins::PinSpec;
-use scenebake::glam::DVec3;
 use scenebake::export::{BasisSize, Compression, QuantizeMode};
+use scenebake::glam::DVec3;
 use serde_json::{json, Value};
 
 fn lab_job(out: &Path, frames: usize) -> ClothJob {

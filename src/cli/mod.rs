@@ -219,11 +219,14 @@ pub fn summary_line(o: &Outcome) -> String {
                 ),
                 None => format!("{} simulated, {} written; ", o.frames_simulated, o.frames),
             };
+            let stretch = match r.membrane_triangles {
+                0 => format!("{} springs", r.springs),
+                t => format!("{t} membrane triangles, {} springs", r.springs),
+            };
             let mut extra = format!(
-                " ({simulated}{} particles, {} springs, {} pinned; {:.2} ms/frame; {} of {} frames within \
+                " ({simulated}{} particles, {stretch}, {} pinned; {:.2} ms/frame; {} of {} frames within \
                  tolerance {})",
                 r.particles,
-                r.springs,
                 r.pinned,
                 r.ms_per_frame,
                 r.frames - r.unconverged_frames.len().min(r.frames),

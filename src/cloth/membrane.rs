@@ -23,7 +23,7 @@
 //! along its edges, and the membrane is the edge springs of [`super::material`] scaled by 9/8
 //! (those were calibrated for a strip held at its sides, where the stiffness is λ + 2μ).
 
-use glam::{DVec2, DVec3};
+use glam::{DMat3, DVec2, DVec3};
 
 use super::material::Material;
 use super::system::{spring_energy, spring_terms, PINNED};
@@ -46,7 +46,11 @@ pub enum MembraneModel {
 }
 
 /// The fibres' directions from a triangle's first edge, radians.
-const FIBRE_ANGLES: [f64; 3] = [0.0, std::f64::consts::FRAC_PI_3, 2.0 * std::f64::consts::FRAC_PI_3];
+const FIBRE_ANGLES: [f64; 3] = [
+    0.0,
+    std::f64::consts::FRAC_PI_3,
+    2.0 * std::f64::consts::FRAC_PI_3,
+];
 
 /// One triangle of the membrane, in the model's particle indices.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,7 +87,10 @@ pub fn membrane_triangles(mesh: &Mesh, material: &Material) -> (Vec<MembraneTria
         let t = warp(mesh, index, e1, e2, n);
         let s = n.cross(t);
         // The rest edges in the triangle's plane: columns of Dm = [e1 e2].
-        let (u1, u2) = (DVec2::new(e1.dot(t), e1.dot(s)), DVec2::new(e2.dot(t), e2.dot(s)));
+        let (u1, u2) = (
+            DVec2::new(e1.dot(t), e1.dot(s)),
+            DVec2::new(e2.dot(t), e2.dot(s)),
+        );
         let det = u1.x * u2.y - u2.x * u1.y;
         let fibres = FIBRE_ANGLES.map(|angle| {
             let d = DVec2::new(angle.cos(), angle.sin());
@@ -208,6 +215,35 @@ impl Membrane {
     }
 }
 
+impl Membrane {
+    /// Adds triangle `e`'s part of the gradient at its corner `a` to `g` and its diagonal block
+    /// there to `h` (the sweeps' local step), reading the free corners' positions from
+    /// `corner` (called with a corner's index 0..3).
+    #[inline(always)]
+    pub(crate) fn add_local(
+        &self,
+        e: usize,
+        a: usize,
+        corner: impl Fn(usize) -> DVec3,
+        g: &mut DVec3,
+        h: &mut DMat3,
+    ) {
+        let v = &self.v[e];
+        for k in 0..3 {
+            let w = &self.w[e][k];
+            let mut r = self.fixed[e][k];
+            for (b, &wb) in w.iter().enumerate() {
+                if v[b] != PINNED {
+                    r += corner(b) * wb;
+                }
+            }
+            let (f, he) = spring_terms(r, 1.0, self.k[e], self.kc[e], self.jam);
+            *g += f * w[a];
+            *h += DMat3::from_cols_array_2d(&he) * (w[a] * w[a]);
+        }
+    }
+}
+
 impl Term for Membrane {
     fn len(&self) -> usize {
         self.v.len()
@@ -322,6 +358,52 @@ mod tests {
         check_against_finite_differences(&pinned, &x, 1e-5);
     }
 
+    /// The sweeps' local step sees the same gradient as the whole term, and the diagonal
+    /// block of its Hessian.
+    #[test]
+    fn the_local_terms_are_the_terms_rows() {
+        let mesh = sheet(5, 0.3);
+        let (tris, _) = membrane_triangles(&mesh, &MaterialPreset::Cotton.material());
+        let mut solver_of = every_free(25);
+        solver_of[0] = PINNED;
+        let m = Membrane::new(&tris, &solver_of, &mesh.positions, 0.08);
+        let x: Vec<DVec3> = mesh
+            .positions
+            .iter()
+            .map(|p| DVec3::new(1.05 * p.x, 0.97 * p.y, 0.1 * p.x * p.x))
+            .collect();
+        let mut grad = vec![DVec3::ZERO; 25];
+        m.add_gradient(&x, &mut grad);
+        let mut diag = vec![DMat3::ZERO; 25];
+        let mut local = Local::default();
+        for e in 0..m.len() {
+            m.derivatives(e, &x, &mut local);
+            for (a, &v) in m.vertices(e).iter().enumerate() {
+                if v != PINNED {
+                    diag[v as usize] += DMat3::from_cols_array_2d(&local.hessian[a][a]);
+                }
+            }
+        }
+        for i in 1..25u32 {
+            let (mut g, mut h) = (DVec3::ZERO, DMat3::ZERO);
+            for e in 0..m.len() {
+                let v = m.vertices(e);
+                if let Some(a) = v.iter().position(|&c| c == i) {
+                    m.add_local(e, a, |c| x[v[c] as usize], &mut g, &mut h);
+                }
+            }
+            let gi = grad[i as usize];
+            assert!(
+                (g - gi).length() <= 1e-12 * gi.length().max(1.0),
+                "{i}: {g} against {gi}"
+            );
+            assert!(
+                h.abs_diff_eq(diag[i as usize], 1e-9 * h.x_axis.x.abs()),
+                "{i}"
+            );
+        }
+    }
+
     /// A uniformly strained sheet: the strip test of fabric. Stretched by ε along x and left to
     /// contract across (by the Poisson ratio 1/3, to first order; exactly so that the 60° and
     /// 120° fibres keep their length), the membrane pulls every interior vertex equally both
@@ -374,7 +456,10 @@ mod tests {
                 // And the energy is the strip's ½·Y·ε² per unit area, whatever the triangles.
                 let energy = m.total_energy(&x);
                 let expected = 0.5 * y_modulus * strain * strain;
-                assert!((energy - expected).abs() < 1e-9 * expected, "{energy} J, {expected}");
+                assert!(
+                    (energy - expected).abs() < 1e-9 * expected,
+                    "{energy} J, {expected}"
+                );
             }
         }
     }
@@ -417,7 +502,10 @@ mod tests {
             expected[b] -= f * 9.0 / 8.0;
         }
         for (g, e) in grad.iter().zip(&expected) {
-            assert!((*g - *e).length() < 1e-9 * e.length().max(1.0), "{g} against {e}");
+            assert!(
+                (*g - *e).length() < 1e-9 * e.length().max(1.0),
+                "{g} against {e}"
+            );
         }
     }
 }

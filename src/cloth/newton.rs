@@ -595,9 +595,7 @@ impl NewtonSolver {
     /// sweeps would not respect.
     pub fn with_sweeps(mut self, sweeps: usize) -> Self {
         self.sweeps = sweeps;
-        // The sweeps relax springs and bending only: with a membrane, Newton runs alone.
-        self.smoother =
-            (sweeps > 0 && self.sys.membrane.is_empty()).then(|| Smoother::new(&self.sys));
+        self.smoother = (sweeps > 0).then(|| Smoother::new(&self.sys));
         self
     }
 
@@ -957,7 +955,14 @@ impl NewtonSolver {
                 }
             }
         }
-        add_term(&self.sys.membrane, &self.membrane_off, &self.diag, x, grad, values);
+        add_term(
+            &self.sys.membrane,
+            &self.membrane_off,
+            &self.diag,
+            x,
+            grad,
+            values,
+        );
         if let Some(contact) = &self.contact {
             let diag = &self.diag;
             contact.add_derivatives(x, grad, |i, he| add_diag(values, &diag[i], &he));
@@ -1868,7 +1873,10 @@ mod tests {
         solver.y.copy_from_slice(&y);
         solver.assemble(&x);
         for (got, want) in solver.grad.iter().zip(&want) {
-            assert!((*got - *want).length() < 1e-9 * (1.0 + want.length()), "{got} vs {want}");
+            assert!(
+                (*got - *want).length() < 1e-9 * (1.0 + want.length()),
+                "{got} vs {want}"
+            );
         }
         let (sys, x) = membrane_sheet(4, false);
         let x: Vec<DVec3> = x.iter().map(|p| x[0] + (*p - x[0]) * 1.1).collect();

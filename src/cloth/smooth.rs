@@ -28,6 +28,7 @@ use glam::{DMat3, DVec3};
 
 use super::collide::contact::{BarrierPlane, NewtonContact};
 use super::system::{spring_response, ReducedSystem, PINNED};
+use super::term::Term;
 
 /// Models with fewer free particles than this are swept in solver order, on one thread: below
 /// it a sweep takes about as long as starting a thread (a sweep of the 8k-vertex skirt takes
@@ -56,6 +57,10 @@ pub struct Smoother {
     /// The bending stencils the particle is in (local stencil index), with its weight there,
     /// √(N/m).
     bends: Vec<(u32, f64)>,
+    tri_start: Vec<u32>,
+    /// The membrane triangles the particle is in: the triangle, the particle's corner there,
+    /// and the corners' local indices ([`PINNED`] for a pinned corner).
+    tris: Vec<(u32, u32, [u32; 3])>,
 }
 
 /// A spring seen from one end.
@@ -184,6 +189,7 @@ impl Smoother {
                         free(s)
                             .flat_map(move |i| free(s).filter(move |&j| j > i).map(move |j| (i, j)))
                     }))
+                    .chain(sys.membrane.pairs())
                     .collect();
                 bisect(n, &pairs)
             })
@@ -243,7 +249,26 @@ impl Smoother {
                 })
             }),
         );
+        let m = &sys.membrane;
+        let (tri_start, tris) = csr(
+            n,
+            (0..m.len()).flat_map(|e| {
+                let v = m.vertices(e);
+                let corners: [u32; 3] = std::array::from_fn(|c| {
+                    if v[c] == PINNED {
+                        PINNED
+                    } else {
+                        local[v[c] as usize]
+                    }
+                });
+                (0..3)
+                    .filter(move |&c| corners[c] != PINNED)
+                    .map(move |c| (corners[c] as usize, (e as u32, c as u32, corners)))
+            }),
+        );
         Smoother {
+            tri_start,
+            tris,
             order,
             parts: [na, na + nb],
             stencil_order,
@@ -460,6 +485,13 @@ impl Smoother {
                 diag += wi * wi;
             }
             hm += DMat3::from_diagonal(DVec3::splat(diag));
+            for &(e, a, corners) in
+                &self.tris[self.tri_start[i] as usize..self.tri_start[i + 1] as usize]
+            {
+                let corner = |c: usize| x.get(corners[c] as usize);
+                sys.membrane
+                    .add_local(e as usize, a as usize, corner, &mut g, &mut hm);
+            }
             let mine = match contact {
                 Some(_) => &planes[plane_start[i] as usize..plane_start[i + 1] as usize],
                 None => &[][..],

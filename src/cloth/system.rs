@@ -19,8 +19,8 @@ use glam::DVec3;
 use super::factor::fill_reducing_order;
 use super::material::{from_frame, hinge_frame};
 use super::membrane::Membrane;
-use super::term::Term;
 use super::model::ClothModel;
+use super::term::Term;
 use crate::error::Result;
 
 /// Time stepping constants shared by the solvers.
@@ -241,10 +241,13 @@ impl ReducedSystem {
             let [a, b, c] = t.corners;
             [(a, b), (a, c), (b, c)]
         });
-        let pairs = spring_pairs.chain(bend_pairs).chain(membrane_pairs).filter_map(|(a, b)| {
-            let (a, b) = (solver_of[a as usize], solver_of[b as usize]);
-            (a != u32::MAX && b != u32::MAX && a != b).then_some((a as usize, b as usize))
-        });
+        let pairs = spring_pairs
+            .chain(bend_pairs)
+            .chain(membrane_pairs)
+            .filter_map(|(a, b)| {
+                let (a, b) = (solver_of[a as usize], solver_of[b as usize]);
+                (a != u32::MAX && b != u32::MAX && a != b).then_some((a as usize, b as usize))
+            });
         let order = fill_reducing_order(free.len(), pairs)?;
         let particle_of: Vec<u32> = order.iter().map(|&o| free[o as usize]).collect();
         for (s, &p) in particle_of.iter().enumerate() {
@@ -622,7 +625,13 @@ fn ramp_integral2(t: f64, lo: f64, hi: f64) -> f64 {
 /// and f/|r| across it, the latter clamped at zero for a compressed spring (whose exact
 /// transverse term is negative), so every block is positive semi-definite.
 #[inline(always)]
-pub(crate) fn spring_terms(r: DVec3, rest: f64, k: f64, kc: f64, jam: f64) -> (DVec3, [[f64; 3]; 3]) {
+pub(crate) fn spring_terms(
+    r: DVec3,
+    rest: f64,
+    k: f64,
+    kc: f64,
+    jam: f64,
+) -> (DVec3, [[f64; 3]; 3]) {
     let len = r.length();
     if len > 0.0 {
         let (f, along) = spring_response(len, rest, k, kc, jam);

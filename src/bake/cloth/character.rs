@@ -6,9 +6,9 @@ use glam::DVec3;
 use std::time::Instant;
 
 use super::{
-    check_export_options, check_target_count, compress, encode_point_caches, encode_usd_layer, length_words, prepare_cloth,
-    quality_report, report, scaled_words, simulate_on_body, CacheReport, CharacterReport, ClothJob,
-    ClothReport, Exported, PreparedCloth, Switch,
+    check_export_options, check_target_count, compress, encode_point_caches, encode_usd_layer,
+    length_words, prepare_cloth, quality_report, report, scaled_words, simulate_on_body,
+    CacheReport, CharacterReport, ClothJob, ClothReport, Exported, PreparedCloth, Switch,
 };
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::{FrameCache, SolverKind};

@@ -1359,6 +1359,7 @@ fn report(
         particles: model.particle_count(),
         springs: model.springs.len(),
         springs_by_kind: prepared.counts,
+        membrane_triangles: model.membrane.len(),
         pinned: model.pinned_count(),
         triangles: model.mesh.render_triangles.len(),
         frames: params.frames,

@@ -21,6 +21,8 @@ pub struct ClothReport {
     pub springs: usize,
     /// Springs by kind.
     pub springs_by_kind: SpringCounts,
+    /// Triangles of the membrane (`--membrane triangles`; 0 with edge springs).
+    pub membrane_triangles: usize,
     /// Pinned particles.
     pub pinned: usize,
     /// Triangles exported.
