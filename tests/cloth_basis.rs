@@ -7,7 +7,7 @@ mod common;
 
 use std::path::Path;
 
-use common::morph::{reference, reference_positions};
+use common::morph::{max_distance, reference, reference_positions};
 use scenebake::bake::cloth::{bake_cloth, ClothJob, ClothSource};
 use scenebake::export::{BasisSize, QuantizeMode};
 use scenebake::glam::{Mat4, Vec3};
@@ -178,8 +178,17 @@ fn first_primitive(doc: &gltf::Document) -> gltf::Primitive<'_> {
 }
 
 fn load(path: &Path) -> Played {
+    load_node(path, None)
+}
+
+/// The morph cache of the node named `name` (the first node when `None`), played by the
+/// channel of the first animation that animates its weights.
+fn load_node(path: &Path, name: Option<&str>) -> Played {
     let (doc, buffers) = open(path);
-    let node = doc.nodes().next().unwrap();
+    let node = match name {
+        Some(name) => doc.nodes().find(|n| n.name() == Some(name)).unwrap(),
+        None => doc.nodes().next().unwrap(),
+    };
     let mesh = node.mesh().unwrap();
     let prim = mesh.primitives().next().unwrap();
     let pos = prim.get(&gltf::Semantic::Positions).unwrap();
@@ -199,7 +208,13 @@ fn load(path: &Path) -> Played {
         })
         .collect();
     let anim = doc.animations().next().unwrap();
-    let channel = anim.channels().next().unwrap();
+    let channel = anim
+        .channels()
+        .find(|c| {
+            c.target().node().index() == node.index()
+                && c.target().property() == gltf::animation::Property::MorphTargetWeights
+        })
+        .unwrap();
     assert_eq!(
         channel.sampler().interpolation(),
         gltf::animation::Interpolation::Linear
@@ -645,4 +660,67 @@ fn normal_targets_play_the_baked_normals_and_move_nothing() {
         basis.mean_normal_error_degrees
     );
     assert!(mean < 0.2, "mean normal error {mean}°");
+}
+
+/// A garment on a character (`--rig`) gets a basis cache too: in the character's document, its
+/// node scaled to the document's units over the basis's own dequantisation, played on the
+/// animation's time axis, every written frame within the basis tolerance of the per-frame cache
+/// of the same bake (itself checked against the skinned body elsewhere), with fewer targets.
+#[test]
+fn a_garment_on_a_character_gets_a_basis_cache() {
+    use common::{fixture, mesh_path};
+    use scenebake::bake::cloth::Switch;
+    use scenebake::cloth::pins::PinSpec;
+    use scenebake::glam::DVec3;
+    let dir = tempfile::tempdir().unwrap();
+    let job = ClothJob {
+        input: Some(fixture("cache_sheet.obj")),
+        output: dir.path().join("frames.glb"),
+        rig: Some(mesh_path("RiggedSimple.gltf")),
+        pin_to: Some("Bone.001".into()),
+        body_collider: Switch::Off,
+        translate: Some(DVec3::new(3.0, 3.0, 0.0)),
+        pin: vec!["box:-10,3.9,-10,10,4.1,10".parse::<PinSpec>().unwrap()],
+        rig_scale: 0.5,
+        ..ClothJob::default()
+    };
+    let frames = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let tolerance = 1e-3;
+    for quantize in [QuantizeMode::Off, QuantizeMode::On] {
+        let basis_job = ClothJob {
+            output: dir.path().join("basis.glb"),
+            basis: Some(BasisSize::Auto),
+            basis_tolerance: Some(tolerance),
+            quantize: Some(quantize),
+            ..job.clone()
+        };
+        let report = bake_cloth(&basis_job, &mut |_, _| {}).unwrap();
+        let basis = report.cache.basis.as_ref().unwrap();
+        assert!(
+            basis.targets < frames.cache.stats.targets,
+            "{} targets",
+            basis.targets
+        );
+        let want = load_node(&job.output, Some("cache_sheet"));
+        let got = load_node(&basis_job.output, Some("cache_sheet"));
+        assert_eq!(
+            got.position_type == gltf::accessor::DataType::I16,
+            quantize == QuantizeMode::On
+        );
+        assert!(want.times[0] > 0.0, "keyed on the animation's times");
+        let mut worst = 0.0f32;
+        for &t in &want.times {
+            // Document units: the tolerance (metres) over the rig scale.
+            let d = max_distance(&got.positions_at(t), &want.positions_at(t));
+            worst = worst.max(d * 0.5);
+        }
+        assert!(
+            worst <= tolerance as f32 + ROUNDING,
+            "{quantize:?}: {worst} m"
+        );
+        // The character is there and plays: its skin and the driving animation's channels.
+        let (doc, _) = open(&basis_job.output);
+        assert_eq!(doc.skins().count(), 1);
+        assert!(doc.animations().next().unwrap().channels().count() > 1);
+    }
 }

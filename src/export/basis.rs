@@ -103,6 +103,7 @@ use glam::{DVec3, Vec3};
 use gltf_json as json;
 use json::validation::Checked::Valid;
 
+use super::character::CharacterHost;
 use super::compact::{delta_accessor, DeltaEncoding, SparseMode, SPARSE_JSON_OVERHEAD};
 use super::frames::RenderFrames;
 use super::gltf_doc::{primitive, GltfBuilder};
@@ -355,6 +356,22 @@ pub fn encode_basis_gltf(
     options: &MorphOptions,
     basis: &BasisOptions,
 ) -> Result<EncodedBasis> {
+    encode_basis_on(path, mesh, frames, options, basis, None)
+}
+
+/// As [`encode_basis_gltf`], the garment added to a character's document when `host` is given
+/// (as [`super::character::encode_character_gltf`] adds a per-frame cache).
+///
+/// # Errors
+/// As [`encode_basis_gltf`].
+pub fn encode_basis_on(
+    path: &Path,
+    mesh: &Mesh,
+    frames: &RenderFrames,
+    options: &MorphOptions,
+    basis: &BasisOptions,
+    host: Option<&CharacterHost<'_>>,
+) -> Result<EncodedBasis> {
     let f = frames.frame_count();
     if f < 2 || frames.vertex_count() != mesh.render_vertices.len() {
         return Err(Error::Export {
@@ -597,6 +614,7 @@ pub fn encode_basis_gltf(
             projection_error,
             svd.singular.iter().take(k + 8).copied().collect(),
             normals,
+            host,
         )
         .map(Some)
     };
@@ -1674,8 +1692,9 @@ fn write(
     projection_error: f64,
     singular_values: Vec<f64>,
     normals: Option<WrittenNormals>,
+    host: Option<&CharacterHost<'_>>,
 ) -> Result<EncodedBasis> {
-    let mut b = GltfBuilder::new();
+    let mut b = host.map_or_else(GltfBuilder::new, CharacterHost::document);
     let mut bytes = PartBytes::default();
     let array = Some(json::buffer::Target::ArrayBuffer);
     let mut stats = CacheStats {
@@ -1895,13 +1914,18 @@ fn write(
         scale: c.quantized.then_some([c.scale as f32; 3]),
         ..Default::default()
     });
-    bytes.statics = push_scene(&mut b, node, &options.static_meshes);
+    if host.is_none() {
+        bytes.statics = push_scene(&mut b, node, &options.static_meshes);
+    }
 
     // Weights: one key per kept frame at its true time.
     let start = b.buffer_len();
     let weights: Vec<f32> = keys.iter().flat_map(|&k| frame_weights(k)).collect();
     push_weights_animation(&mut b, node, &keys, &weights, options);
     bytes.animation = (b.buffer_len() - start) as u64;
+    if let Some(host) = host {
+        host.dress(&mut b, node, &options.name);
+    }
     super::playback::stamp(
         &mut b.root,
         &super::playback::Playback::frames(options.fps, frames.frame_count(), &options.name),

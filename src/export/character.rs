@@ -48,75 +48,110 @@ pub fn encode_character_gltf(
     options: &MorphOptions,
     character: &CharacterOptions<'_>,
 ) -> Result<EncodedMorph> {
-    let mut b = GltfBuilder::from_parts(doc.root, doc.bin);
-    lift_skinned_meshes_to_root(&mut b.root);
+    let host = CharacterHost { doc, character };
+    let mut b = host.document();
     let (node, stats): (_, CacheStats) = push_morph(&mut b, path, mesh, frames, options)?;
-    let s = (1.0 / character.rig_scale) as f32;
-    b.root.nodes[node.value()].scale = Some([s, s, s]);
-    let garment = b
-        .root
-        .animations
-        .pop()
-        .expect("push_morph adds the weights animation last");
-
-    let mut animation = driving_animation(&mut b, character);
-    // Every joint of the skins (and the nodes between them) gets a defined pose: Blender keeps a
-    // bone's pose from the previously active action where this one has no key for it.
-    let joints: Vec<usize> = b
-        .root
-        .skins
-        .iter()
-        .flat_map(|s| s.joints.iter().map(|j| j.value()))
-        .collect();
-    let posed = posed_nodes(&b.root, &joints);
-    let keyed = |node: usize, p: json::animation::Property| {
-        character.clip.tracks.iter().any(|t| {
-            t.node == node
-                && matches!(
-                    (t.property, p),
-                    (
-                        Property::Translation,
-                        json::animation::Property::Translation
-                    ) | (Property::Rotation, json::animation::Property::Rotation)
-                        | (Property::Scale, json::animation::Property::Scale)
-                )
-        })
-    };
-    let start = character.clip.start();
-    let end = start + character.cycles.max(1) as f64 * character.clip.duration();
-    let times: Vec<f32> = if end > start {
-        vec![start as f32, end as f32]
-    } else {
-        vec![start as f32]
-    };
-    push_hold_channels(
-        &mut b,
-        &posed,
-        &times,
-        &keyed,
-        &mut animation.channels,
-        &mut animation.samplers,
-    );
-    let offset = animation.samplers.len() as u32;
-    for mut ch in garment.channels {
-        ch.sampler = json::Index::new(ch.sampler.value() as u32 + offset);
-        animation.channels.push(ch);
-    }
-    animation.samplers.extend(garment.samplers);
-    animation.name = Some(options.name.clone());
-    b.root.animations.insert(0, animation);
-
-    let scene = b.root.scene.map_or(0, |s| s.value());
-    if b.root.scenes.is_empty() {
-        b.root.scenes.push(json::Scene {
-            nodes: Vec::new(),
-            name: None,
-            extensions: None,
-            extras: Default::default(),
-        });
-    }
-    b.root.scenes[scene].nodes.push(node);
+    host.dress(&mut b, node, &options.name);
     stamp_and_encode(b, path, frames, options, stats)
+}
+
+/// A character's document that a garment's mesh is added to, by the morph cache's writer or the
+/// basis cache's ([`super::basis::encode_basis_gltf`]).
+#[derive(Debug)]
+pub struct CharacterHost<'a> {
+    /// The character.
+    pub doc: RigDocument,
+    /// How the garment sits in it.
+    pub character: &'a CharacterOptions<'a>,
+}
+
+impl CharacterHost<'_> {
+    /// A new document holding the character, its skinned meshes lifted to the scene root.
+    pub(crate) fn document(&self) -> GltfBuilder {
+        let mut b = GltfBuilder::from_parts(self.doc.root.clone(), self.doc.bin.clone());
+        lift_skinned_meshes_to_root(&mut b.root);
+        b
+    }
+
+    /// Puts the garment's `node` (in metres, in no scene yet) into the character's scene,
+    /// scaled to the document's units, and merges its weights animation (the last of `b`'s)
+    /// with the driving animation into a first animation named `name`.
+    pub(crate) fn dress(&self, b: &mut GltfBuilder, node: json::Index<json::Node>, name: &str) {
+        let character = self.character;
+        let s = 1.0 / character.rig_scale;
+        // A quantised cache's node already carries its dequantisation (translation and scale):
+        // the document's units scale both.
+        let garment_node = &mut b.root.nodes[node.value()];
+        let scale = garment_node.scale.unwrap_or([1.0; 3]);
+        garment_node.scale = Some(scale.map(|c| (f64::from(c) * s) as f32));
+        if let Some(t) = garment_node.translation.as_mut() {
+            *t = t.map(|c| (f64::from(c) * s) as f32);
+        }
+        let garment = b
+            .root
+            .animations
+            .pop()
+            .expect("the garment's weights animation is pushed last");
+
+        let mut animation = driving_animation(b, character);
+        // Every joint of the skins (and the nodes between them) gets a defined pose: Blender
+        // keeps a bone's pose from the previously active action where this one has no key for
+        // it.
+        let joints: Vec<usize> = b
+            .root
+            .skins
+            .iter()
+            .flat_map(|s| s.joints.iter().map(|j| j.value()))
+            .collect();
+        let posed = posed_nodes(&b.root, &joints);
+        let keyed = |node: usize, p: json::animation::Property| {
+            character.clip.tracks.iter().any(|t| {
+                t.node == node
+                    && matches!(
+                        (t.property, p),
+                        (
+                            Property::Translation,
+                            json::animation::Property::Translation
+                        ) | (Property::Rotation, json::animation::Property::Rotation)
+                            | (Property::Scale, json::animation::Property::Scale)
+                    )
+            })
+        };
+        let start = character.clip.start();
+        let end = start + character.cycles.max(1) as f64 * character.clip.duration();
+        let times: Vec<f32> = if end > start {
+            vec![start as f32, end as f32]
+        } else {
+            vec![start as f32]
+        };
+        push_hold_channels(
+            b,
+            &posed,
+            &times,
+            &keyed,
+            &mut animation.channels,
+            &mut animation.samplers,
+        );
+        let offset = animation.samplers.len() as u32;
+        for mut ch in garment.channels {
+            ch.sampler = json::Index::new(ch.sampler.value() as u32 + offset);
+            animation.channels.push(ch);
+        }
+        animation.samplers.extend(garment.samplers);
+        animation.name = Some(name.to_owned());
+        b.root.animations.insert(0, animation);
+
+        let scene = b.root.scene.map_or(0, |s| s.value());
+        if b.root.scenes.is_empty() {
+            b.root.scenes.push(json::Scene {
+                nodes: Vec::new(),
+                name: None,
+                extensions: None,
+                extras: Default::default(),
+            });
+        }
+        b.root.scenes[scene].nodes.push(node);
+    }
 }
 
 /// The key times of a track over `cycles` loops of `period` seconds, and for each the index of

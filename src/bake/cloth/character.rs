@@ -6,15 +6,17 @@ use glam::DVec3;
 use std::time::Instant;
 
 use super::{
-    check_export_options, check_target_count, compress, encode_point_caches, encode_usd_layer,
-    length_words, prepare_cloth, quality_report, report, scaled_words, simulate_on_body,
-    CacheReport, CharacterReport, ClothJob, ClothReport, Exported, PreparedCloth, Switch,
+    basis_options, check_export_options, check_target_count, compress, encode_point_caches,
+    encode_usd_layer, length_words, prepare_cloth, quality_report, report, scaled_words,
+    simulate_on_body, CacheReport, CharacterReport, ClothJob, ClothReport, Exported, PreparedCloth,
+    Switch,
 };
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::{FrameCache, SolverKind};
 use crate::data::animation::{Clip, SkinnedMesh};
 use crate::error::{Error, Result};
-use crate::export::character::{encode_character_gltf, CharacterOptions};
+use crate::export::basis::encode_basis_on;
+use crate::export::character::{encode_character_gltf, CharacterHost, CharacterOptions};
 use crate::export::morph::{encode_morph_gltf, AnimatedBody};
 use crate::export::{MorphOptions, RenderFrames, Written};
 use crate::io::rig::RigDocument;
@@ -30,8 +32,8 @@ pub const SEAM_WARNING: f64 = 0.01;
 /// report.
 ///
 /// # Errors
-/// Option errors (a solver other than Newton, `--frames`, a basis or VAT, which this bake does
-/// not write yet), rig errors (no such animation or joint, no skinned mesh to bind to), and those
+/// Option errors (a solver other than Newton, `--frames`, a VAT, which this bake does not
+/// write yet), rig errors (no such animation or joint, no skinned mesh to bind to), and those
 /// of [`super::bake_cloth`].
 pub fn bake_on_character(
     job: &ClothJob,
@@ -50,7 +52,6 @@ pub fn bake_on_character(
     }
     for (given, param) in [
         (job.frames.is_some(), Param::Frames),
-        (job.basis.is_some(), Param::Basis),
         (job.vat.is_some(), Param::Vat),
     ] {
         if given {
@@ -197,17 +198,39 @@ pub fn bake_on_character(
     };
     crate::export::morph::check_cache(&job.output, &model.mesh, &cache)?;
     let frames = RenderFrames::new(&model.mesh, &cache);
-    let morph = if job.garment_only {
-        encode_morph_gltf(&job.output, &model.mesh, &frames, &options)?
-    } else {
-        let character = CharacterOptions {
-            clip: &clip,
-            cycles: job.cycles,
-            rig_scale,
-        };
-        encode_character_gltf(&job.output, doc, &model.mesh, &frames, &options, &character)?
+    let character = CharacterOptions {
+        clip: &clip,
+        cycles: job.cycles,
+        rig_scale,
     };
-    check_target_count(job, morph.stats.targets, false)?;
+    let (morph, basis) = match (basis_options(job), job.garment_only) {
+        (Some(basis), garment_only) => {
+            let host = (!garment_only).then_some(CharacterHost {
+                doc,
+                character: &character,
+            });
+            let e = encode_basis_on(
+                &job.output,
+                &model.mesh,
+                &frames,
+                &options,
+                &basis,
+                host.as_ref(),
+            )?;
+            (e.morph, Some(e.basis))
+        }
+        (None, true) => (
+            encode_morph_gltf(&job.output, &model.mesh, &frames, &options)?,
+            None,
+        ),
+        (None, false) => (
+            encode_character_gltf(&job.output, doc, &model.mesh, &frames, &options, &character)?,
+            None,
+        ),
+    };
+    if basis.is_none() {
+        check_target_count(job, morph.stats.targets, true)?;
+    }
     let mut files = compress(job, morph.files)?;
     let gltf_bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
     // The caches hold the written loops as the glTF's garment mesh does (metres; the glTF's
@@ -233,7 +256,7 @@ pub fn bake_on_character(
             keyframe_tolerance: options.keyframe_tolerance,
             gltf_bytes,
             stats: morph.stats,
-            basis: None,
+            basis,
         },
         vat: None,
         point_caches,

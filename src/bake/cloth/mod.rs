@@ -1194,6 +1194,19 @@ pub(crate) fn encode_usd_layer(
     Ok(Some(((encoded.path, encoded.bytes), report)))
 }
 
+/// The basis cache `--basis` asks for, if any.
+pub(crate) fn basis_options(job: &ClothJob) -> Option<BasisOptions> {
+    job.basis.map(|size| BasisOptions {
+        size,
+        tolerance: job
+            .basis_tolerance
+            .or(job.keyframe_tolerance)
+            .unwrap_or(DEFAULT_BASIS_TOLERANCE),
+        max_targets: job.max_targets,
+        quantize: job.quantize.unwrap_or_default(),
+    })
+}
+
 /// Refuses a per-frame morph cache of more targets than `--max-targets` allows, suggesting a
 /// basis where the bake can write one (`basis_possible`) and a larger keyframe tolerance.
 pub(crate) fn check_target_count(
@@ -1239,17 +1252,8 @@ fn export(
 ) -> Result<Exported> {
     check_cache(&job.output, &model.mesh, cache)?;
     let frames = RenderFrames::new(&model.mesh, cache);
-    let (morph, basis) = match job.basis {
-        Some(size) => {
-            let basis = BasisOptions {
-                size,
-                tolerance: job
-                    .basis_tolerance
-                    .or(job.keyframe_tolerance)
-                    .unwrap_or(DEFAULT_BASIS_TOLERANCE),
-                max_targets: job.max_targets,
-                quantize: job.quantize.unwrap_or_default(),
-            };
+    let (morph, basis) = match basis_options(job) {
+        Some(basis) => {
             let e = encode_basis_gltf(&job.output, &model.mesh, &frames, &options, &basis)?;
             (e.morph, Some(e.basis))
         }
