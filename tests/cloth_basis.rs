@@ -668,21 +668,10 @@ fn normal_targets_play_the_baked_normals_and_move_nothing() {
 /// of the same bake (itself checked against the skinned body elsewhere), with fewer targets.
 #[test]
 fn a_garment_on_a_character_gets_a_basis_cache() {
-    use common::{fixture, mesh_path};
-    use scenebake::bake::cloth::Switch;
-    use scenebake::cloth::pins::PinSpec;
-    use scenebake::glam::DVec3;
     let dir = tempfile::tempdir().unwrap();
     let job = ClothJob {
-        input: Some(fixture("cache_sheet.obj")),
-        output: dir.path().join("frames.glb"),
-        rig: Some(mesh_path("RiggedSimple.gltf")),
-        pin_to: Some("Bone.001".into()),
-        body_collider: Switch::Off,
-        translate: Some(DVec3::new(3.0, 3.0, 0.0)),
-        pin: vec!["box:-10,3.9,-10,10,4.1,10".parse::<PinSpec>().unwrap()],
         rig_scale: 0.5,
-        ..ClothJob::default()
+        ..common::rigged_sheet(dir.path().join("frames.glb"))
     };
     let frames = bake_cloth(&job, &mut |_, _| {}).unwrap();
     let tolerance = 1e-3;

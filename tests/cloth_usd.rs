@@ -207,16 +207,9 @@ fn a_body_sequence_is_a_mesh_with_time_sampled_points() {
 fn a_rig_bake_writes_the_garment_and_the_skinned_body() {
     let dir = tempfile::tempdir().unwrap();
     let job = ClothJob {
-        input: Some(fixture("cache_sheet.obj")),
-        output: dir.path().join("rig.glb"),
-        rig: Some(mesh_path("RiggedSimple.gltf")),
-        pin_to: Some("Bone.001".into()),
-        body_collider: scenebake::bake::cloth::Switch::Off,
-        translate: Some(DVec3::new(3.0, 3.0, 0.0)),
-        pin: vec!["box:-10,3.9,-10,10,4.1,10".parse::<PinSpec>().unwrap()],
         usd: Some(dir.path().join("rig.usda")),
         cycles: 2,
-        ..ClothJob::default()
+        ..common::rigged_sheet(dir.path().join("rig.glb"))
     };
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     let r = report.usd.as_ref().unwrap();

@@ -109,12 +109,29 @@ pub fn analyse_upper(
     col_ptr: &[usize],
     row_idx: &[usize],
 ) -> Result<faer::sparse::linalg::cholesky::SymbolicCholesky<usize>> {
+    analyse_upper_with(n, col_ptr, row_idx, SupernodalThreshold::AUTO)
+}
+
+/// As [`analyse_upper`], choosing the supernodal factor by `threshold` (faer's ratio of
+/// factorisation flops to factor entries).
+///
+/// # Errors
+/// As [`analyse_upper`].
+pub fn analyse_upper_with(
+    n: usize,
+    col_ptr: &[usize],
+    row_idx: &[usize],
+    threshold: SupernodalThreshold,
+) -> Result<faer::sparse::linalg::cholesky::SymbolicCholesky<usize>> {
     let pattern = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
     factorize_symbolic_cholesky(
         pattern,
         Side::Upper,
         SymmetricOrdering::Identity,
-        CholeskySymbolicParams::default(),
+        CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: threshold,
+            ..CholeskySymbolicParams::default()
+        },
     )
     .map_err(|e| Error::Factorisation(format!("symbolic analysis: {e:?}")))
 }

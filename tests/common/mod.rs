@@ -43,6 +43,22 @@ pub fn fixture(name: &str) -> PathBuf {
     crate_dir().join("tests/fixtures").join(name)
 }
 
+/// The cache test sheet hanging from RiggedSimple's upper bone (pins bound to `Bone.001`, no
+/// body collider), written to `output`: the small character bake of the cache tests.
+pub fn rigged_sheet(output: PathBuf) -> scenebake::bake::cloth::ClothJob {
+    use scenebake::bake::cloth::{ClothJob, Switch};
+    ClothJob {
+        input: Some(fixture("cache_sheet.obj")),
+        output,
+        rig: Some(mesh_path("RiggedSimple.gltf")),
+        pin_to: Some("Bone.001".into()),
+        body_collider: Switch::Off,
+        translate: Some(DVec3::new(3.0, 3.0, 0.0)),
+        pin: vec!["box:-10,3.9,-10,10,4.1,10".parse().unwrap()],
+        ..ClothJob::default()
+    }
+}
+
 /// Reads a report JSON as a generic value.
 pub fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
