@@ -362,3 +362,62 @@ fn body_options_without_a_body_are_refused() {
     );
     assert!(!out.exists());
 }
+
+/// A body given as a glTF animated by morph targets (`--body FILE.glb#NAME`) moves as the
+/// sequence it was written from: the rising box, written by a first bake into its glTF as
+/// `sheet_body`, read back at the rate the file records (50 fps), has its top at `top_at(t)` at
+/// every frame; a second sheet baked on it rides the risen top as on the OBJ sequence. Without a
+/// name the first animated mesh is taken (the first bake's sheet); a skinned character is
+/// refused, pointing to `--rig`.
+#[test]
+fn a_body_from_a_morph_animated_gltf_moves_as_its_sequence() {
+    use scenebake::io::sequence::load_gltf_sequence;
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = write_sequence(dir.path());
+    let first = dir.path().join("first.glb");
+    bake_cloth(&job(dir.path(), pattern, &first), &mut |_, _| {}).unwrap();
+    let named = PathBuf::from(format!("{}#sheet_body", first.display()));
+    let body = load_gltf_sequence(&named, None).unwrap();
+    assert_eq!((body.fps, body.frames.len()), (50.0, 51));
+    assert_eq!(body.mesh.positions.len(), 8);
+    for (k, frame) in body.frames.iter().enumerate() {
+        let t = k as f64 / 50.0;
+        for p in frame {
+            assert!((p.x.abs() - HALF).abs() < 1e-6 && (p.z.abs() - HALF).abs() < 1e-6);
+            let want = if p.y > BOTTOM + 1e-3 {
+                top_at(t)
+            } else {
+                BOTTOM
+            };
+            assert!(
+                (p.y - want).abs() < 1e-5,
+                "frame {k}: {} against {want}",
+                p.y
+            );
+        }
+    }
+    let unnamed = load_gltf_sequence(&first, None).unwrap();
+    assert!(unnamed.mesh.positions.len() > 8, "the sheet comes first");
+    let err = load_gltf_sequence(&common::mesh_path("RiggedSimple.gltf"), None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("rig") && err.contains("morph-target"), "{err}");
+
+    let second = dir.path().join("second.glb");
+    let job = ClothJob {
+        body_fps: None,
+        ..job(dir.path(), named, &second)
+    };
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    assert_eq!(report.frames, 50);
+    assert!(report.unconverged_frames.is_empty());
+    let (doc, buffers, _) = common::gltf_read::import(&second).unwrap();
+    let sheet = Played::read(&doc, &buffers, "sheet");
+    for p in &sheet.at_key(50) {
+        let gap = p.y - RISE;
+        assert!(
+            gap > 0.5 * THICKNESS && gap < 2.0 * THICKNESS,
+            "sheet vertex {p} is {gap} m above the risen top"
+        );
+    }
+}

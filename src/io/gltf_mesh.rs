@@ -54,7 +54,7 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
 }
 
 /// Mesh `gmesh`'s triangle primitives as one body, placed by `transform`.
-fn read_mesh(
+pub(crate) fn read_mesh(
     path: &Path,
     buffers: &[Vec<u8>],
     gmesh: gltf::Mesh<'_>,
@@ -246,7 +246,7 @@ fn mesh_nodes(doc: &gltf::Document) -> Vec<(gltf::Node<'_>, gltf::Mesh<'_>, DMat
 
 /// World transform of the first node (in any scene) that instantiates mesh `mesh_index`;
 /// identity when no node does.
-fn world_transform_of_mesh(doc: &gltf::Document, mesh_index: usize) -> DMat4 {
+pub(crate) fn world_transform_of_mesh(doc: &gltf::Document, mesh_index: usize) -> DMat4 {
     fn visit(node: gltf::Node<'_>, parent: Mat4, mesh_index: usize) -> Option<Mat4> {
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if node.mesh().map(|m| m.index()) == Some(mesh_index) {

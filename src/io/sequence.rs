@@ -9,6 +9,8 @@
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
+use glam::DVec3;
+
 use crate::data::MeshSequence;
 use crate::error::{Error, Result};
 use crate::io::obj::{load_obj, ObjOptions};
@@ -272,6 +274,197 @@ pub fn load_obj_sequence(pattern: &Path, fps: f64, start: Option<u64>) -> Result
         fps,
         files,
         first_number: first,
+    })
+}
+
+/// `FILE.glb#NAME` as the file and the part's name (the path as given when it has no such
+/// suffix after a glTF extension).
+fn split_part(path: &Path) -> (PathBuf, Option<String>) {
+    let text = path.to_string_lossy();
+    if let Some((file, part)) = text.rsplit_once('#') {
+        let lower = file.to_ascii_lowercase();
+        if (lower.ends_with(".glb") || lower.ends_with(".gltf")) && !part.is_empty() {
+            return (PathBuf::from(file), Some(part.to_owned()));
+        }
+    }
+    (path.to_path_buf(), None)
+}
+
+/// Reads a body animated by morph targets from a glTF file (`--body FILE.glb[#NAME]`): the
+/// first mesh node (named NAME, or whose mesh is) whose weights an animation drives (the first
+/// such animation), its triangle primitives
+/// merged and placed as [`super::gltf_mesh::load_gltf_mesh`] places a mesh, sampled every 1/fps
+/// seconds from the animation's first key to its last. `fps` is `--body-fps`, else the rate a
+/// scenebake export records, else the spacing of the keys when it is uniform.
+///
+/// # Errors
+/// [`Error::Param`] naming `body` for a file without such a mesh or a cubic-spline weights
+/// track, and `body_fps` when no rate can be found; [`Error::InvalidInput`] for targets without
+/// positions or weights of the wrong length; the glTF reader's errors.
+pub fn load_gltf_sequence(path: &Path, fps: Option<f64>) -> Result<MeshSequence> {
+    let (path, part) = split_part(path);
+    let path = path.as_path();
+    let (doc, buffers) = super::gltf_import::import_gltf(path)?;
+    let buffer = |b: gltf::Buffer<'_>| buffers.get(b.index()).map(|d| &d[..]);
+    let driven = doc.animations().find_map(|a| {
+        a.channels().find_map(|c| {
+            let node = c.target().node();
+            let morphs = node
+                .mesh()
+                .is_some_and(|m| m.primitives().any(|p| p.morph_targets().next().is_some()));
+            let named = part.as_deref().is_none_or(|p| {
+                node.name() == Some(p) || node.mesh().and_then(|m| m.name()) == Some(p)
+            });
+            (c.target().property() == gltf::animation::Property::MorphTargetWeights
+                && morphs
+                && named
+                && node.skin().is_none())
+            .then_some(c)
+        })
+    });
+    let Some(channel) = driven else {
+        let which = part.map_or_else(String::new, |p| format!(" named `{p}`"));
+        return Err(Error::param_value(
+            Param::Body,
+            crate::text!(
+                format!(
+                    "`{}`: no mesh{which} animated by morph-target weights (a skinned character \
+                     is given with ",
+                    path.display()
+                ),
+                Param::Rig,
+                ")"
+            ),
+        ));
+    };
+    let gmesh = channel.target().node().mesh().expect("checked above");
+    let sampler = channel.sampler();
+    if sampler.interpolation() == gltf::animation::Interpolation::CubicSpline {
+        return Err(Error::param_value(
+            Param::Body,
+            format!(
+                "`{}`: the weights track is a cubic spline; linear or step weights are read",
+                path.display()
+            ),
+        ));
+    }
+    let reader = channel.reader(buffer);
+    let times: Vec<f64> = reader
+        .read_inputs()
+        .map(|t| t.map(f64::from).collect())
+        .unwrap_or_default();
+    let weights: Vec<f64> = match reader.read_outputs() {
+        Some(gltf::animation::util::ReadOutputs::MorphTargetWeights(w)) => {
+            w.into_f32().map(f64::from).collect()
+        }
+        _ => Vec::new(),
+    };
+    let transform = super::gltf_mesh::world_transform_of_mesh(&doc, gmesh.index());
+    let mesh = super::gltf_mesh::read_mesh(path, &buffers, gmesh.clone(), transform)?;
+    // Per render vertex (the primitives' vertices in order), each target's position delta.
+    let mut deltas: Vec<Vec<[f32; 3]>> = Vec::new();
+    let mut vertices = 0;
+    for prim in gmesh.primitives() {
+        let r = prim.reader(buffer);
+        if prim.mode() != gltf::mesh::Mode::Triangles {
+            continue;
+        }
+        let Some(count) = r.read_positions().map(Iterator::count) else {
+            continue;
+        };
+        for (t, (positions, _, _)) in r.read_morph_targets().enumerate() {
+            if deltas.len() <= t {
+                deltas.push(vec![[0.0; 3]; vertices]);
+            }
+            match positions {
+                Some(p) => deltas[t].extend(p),
+                None => deltas[t].extend(std::iter::repeat_n([0.0; 3], count)),
+            }
+        }
+        vertices += count;
+        for d in &mut deltas {
+            d.resize(vertices, [0.0; 3]);
+        }
+    }
+    let targets = deltas.len();
+    if targets == 0 || weights.len() != times.len() * targets || times.len() < 2 {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "mesh {}: {targets} morph targets, {} weights for {} keys: expected one weight \
+                 per target and key, and at least two keys",
+                gmesh.index(),
+                weights.len(),
+                times.len()
+            ),
+        ));
+    }
+    let (start, end) = (times[0], times[times.len() - 1]);
+    let recorded = (|| {
+        let root: serde_json::Value =
+            serde_json::from_str(doc.as_json().asset.extras.as_ref()?.get()).ok()?;
+        root.get("scenebake")?.get("fps")?.as_f64()
+    })();
+    let spacing = (end - start) / (times.len() - 1) as f64;
+    let uniform = times
+        .windows(2)
+        .all(|w| ((w[1] - w[0]) - spacing).abs() <= 1e-4 * spacing);
+    let fps = match fps.or(recorded) {
+        Some(f) => f,
+        None if uniform && spacing > 0.0 => 1.0 / spacing,
+        None => {
+            return Err(Error::param_value(
+                Param::BodyFps,
+                format!(
+                    "missing: the keys of `{}` are not evenly spaced; give the rate to sample \
+                     the body at",
+                    path.display()
+                ),
+            ))
+        }
+    };
+    let count = ((end - start) * fps + 1e-6).floor() as usize + 1;
+    let step = sampler.interpolation() == gltf::animation::Interpolation::Step;
+    let weights_at = |t: f64| -> Vec<f64> {
+        let row = |k: usize| &weights[k * targets..(k + 1) * targets];
+        let k = times.partition_point(|&x| x <= t).clamp(1, times.len() - 1) - 1;
+        let s = ((t - times[k]) / (times[k + 1] - times[k])).clamp(0.0, 1.0);
+        if step {
+            return row(if s >= 1.0 { k + 1 } else { k }).to_vec();
+        }
+        row(k)
+            .iter()
+            .zip(row(k + 1))
+            .map(|(a, b)| a + (b - a) * s)
+            .collect()
+    };
+    let base: Vec<DVec3> = (0..vertices)
+        .map(|v| {
+            transform
+                .inverse()
+                .transform_point3(mesh.positions[mesh.render_vertices[v].particle as usize])
+        })
+        .collect();
+    let frames: Vec<Vec<DVec3>> = (0..count)
+        .map(|k| {
+            let w = weights_at(start + k as f64 / fps);
+            let mut positions = mesh.positions.clone();
+            for (v, rv) in mesh.render_vertices.iter().enumerate().take(vertices) {
+                let mut p = base[v];
+                for (d, wt) in deltas.iter().zip(&w) {
+                    p += DVec3::from(d[v].map(f64::from)) * *wt;
+                }
+                positions[rv.particle as usize] = transform.transform_point3(p);
+            }
+            positions
+        })
+        .collect();
+    Ok(MeshSequence {
+        mesh,
+        frames,
+        fps,
+        files: vec![path.to_path_buf()],
+        first_number: 0,
     })
 }
 

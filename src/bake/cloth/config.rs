@@ -463,6 +463,9 @@ pub struct ClothJob {
     /// moves (linearly between its frames), the bake lasts as long as the sequence (--frames
     /// can shorten it), and the output holds the body with its animation. The sequence is used
     /// as it is: --translate, --scale and --up place the garment only (Newton solver only).
+    /// Or a glTF animated by morph targets, `FILE.glb[#NAME]`: the mesh (node or mesh NAME, else
+    /// the first) whose weights an animation drives, sampled at --body-fps (default: the rate
+    /// the file records, else its keys' spacing).
     #[cfg_attr(
         feature = "cli",
         arg(long, value_name = "PATTERN", help_heading = "Body sequence")

@@ -18,7 +18,7 @@ use crate::cloth::drive::SequenceDrive;
 use crate::cloth::{FrameCache, SolverKind};
 use crate::error::{Error, Result};
 use crate::export::{AnimatedBody, MorphOptions, RenderFrames};
-use crate::io::sequence::load_obj_sequence;
+use crate::io::sequence::{load_gltf_sequence, load_obj_sequence};
 use crate::param::Param;
 use crate::spec::positive;
 use crate::text;
@@ -65,21 +65,46 @@ pub fn bake_on_sequence(
             ),
         ));
     }
-    let Some(body_fps) = job.body_fps else {
+    let is_gltf = {
+        let text = pattern.to_string_lossy().to_ascii_lowercase();
+        let file = text.rsplit_once('#').map_or(text.as_str(), |(f, _)| f);
+        file.ends_with(".glb") || file.ends_with(".gltf")
+    };
+    if is_gltf && job.body_start.is_some() {
         return Err(Error::param_value(
-            Param::BodyFps,
+            Param::BodyStart,
             text!(
-                "missing: give the frame rate of the ",
+                "numbers the files of an OBJ sequence; a glTF ",
                 Param::Body,
-                " sequence (an OBJ sequence does not record it)"
+                " plays its animation from its first key"
             ),
         ));
-    };
-    let body_fps = positive(Param::BodyFps, body_fps)?;
-    let fps = positive(Param::Fps, job.fps.unwrap_or(body_fps))?;
+    }
+    let body_fps = job
+        .body_fps
+        .map(|f| positive(Param::BodyFps, f))
+        .transpose()?;
+    if let Some(fps) = job.fps {
+        positive(Param::Fps, fps)?;
+    }
     super::check_export_options(job)?;
 
-    let sequence = load_obj_sequence(&pattern, body_fps, job.body_start)?;
+    let sequence = match body_fps {
+        _ if is_gltf => load_gltf_sequence(&pattern, body_fps)?,
+        Some(f) => load_obj_sequence(&pattern, f, job.body_start)?,
+        None => {
+            return Err(Error::param_value(
+                Param::BodyFps,
+                text!(
+                    "missing: give the frame rate of the ",
+                    Param::Body,
+                    " sequence (an OBJ sequence does not record it)"
+                ),
+            ))
+        }
+    };
+    let body_fps = sequence.fps;
+    let fps = positive(Param::Fps, job.fps.unwrap_or(body_fps))?;
     let duration = sequence.duration();
     // Frames that fit in the sequence (a hair of slack for 1/3-style rates).
     let whole = (duration * fps + 1e-9).floor() as usize;
