@@ -79,6 +79,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky};
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use glam::DVec3;
@@ -93,7 +94,6 @@ use super::system::{spring_terms, BendCoupling, ReducedSystem, OPPOSITE, PINNED}
 use super::term::{Local, Term};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
-use faer::sparse::linalg::SupernodalThreshold;
 
 /// Default relative gradient tolerance ‖∇g‖ / force scale at which Newton stops.
 ///
