@@ -1,10 +1,10 @@
 //! A triangle membrane whose stiffness does not depend on the triangulation
 //! (`--membrane triangles`).
 //!
-//! Edge springs carry the mesh's directions into the material: on a jittered grid the same
-//! fabric hangs differently and converges slower than on a regular one (issue 38 measures
-//! 18 cm apart). Here every triangle carries three *fibres* of the continuum through it, along
-//! the directions 0°, 60° and 120° from its first edge, in its own rest plane. A fibre's
+//! Edge springs carry the mesh's directions into the material: the same cotton sheet swings
+//! 2.1 cm apart as a regular and as a jittered 61×61 grid, where this membrane keeps it within
+//! 0.05 mm (`tests/cloth_material.rs`). Here every triangle carries three *fibres* of the
+//! continuum through it, 60° apart in its own rest plane. A fibre's
 //! direction d (a unit vector of the rest plane) is stretched to r = F·d, with F the triangle's
 //! deformation gradient: a fixed combination r = Σᵢ wᵢ xᵢ of the corners (Σ wᵢ = 0, |r| = 1 at
 //! rest), the first along the fabric's warp ([`warp`]). Each fibre stores the fabric's one-dimensional law of [`spring_response`] in strain
@@ -45,7 +45,7 @@ pub enum MembraneModel {
     Triangles,
 }
 
-/// The fibres' directions from a triangle's first edge, radians.
+/// The fibres' directions from a triangle's warp ([`warp`]), radians.
 const FIBRE_ANGLES: [f64; 3] = [
     0.0,
     std::f64::consts::FRAC_PI_3,
