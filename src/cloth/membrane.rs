@@ -270,7 +270,8 @@ impl Term for Membrane {
             let w = &self.w[e][k];
             for a in 0..3 {
                 local.gradient[a] += f * w[a];
-                for b in 0..3 {
+                // The blocks wₐ·w_b·He are symmetric, and (b, a) is (a, b): the upper ones here.
+                for b in a..3 {
                     let ww = w[a] * w[b];
                     for (row, he_row) in local.hessian[a][b].iter_mut().zip(&he) {
                         for (h, he) in row.iter_mut().zip(he_row) {
@@ -278,6 +279,11 @@ impl Term for Membrane {
                         }
                     }
                 }
+            }
+        }
+        for a in 0..3 {
+            for b in a + 1..3 {
+                local.hessian[b][a] = local.hessian[a][b];
             }
         }
     }
