@@ -281,7 +281,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let (doc, buffers) = crate::io::gltf_import::import_gltf_for_inspection(path)?;
     let quantized = doc
         .extensions_required()
-        .any(|e| e == crate::export::basis::KHR_MESH_QUANTIZATION);
+        .any(|e| e == crate::data::KHR_MESH_QUANTIZATION);
     let dir = path.parent().unwrap_or(Path::new(""));
     let external: u64 = doc
         .buffers()

@@ -12,3 +12,6 @@ pub use chain::{Chain, Joint, Pose};
 pub use frames::FrameCache;
 pub use sequence::MeshSequence;
 pub use statics::StaticMesh;
+
+/// Name of the glTF quantisation extension, which the basis writer uses and the readers accept.
+pub const KHR_MESH_QUANTIZATION: &str = "KHR_mesh_quantization";

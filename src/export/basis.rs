@@ -117,8 +117,7 @@ use crate::mesh::Mesh;
 use crate::param::Param;
 use crate::text;
 
-/// Name of the quantisation extension.
-pub const KHR_MESH_QUANTIZATION: &str = "KHR_mesh_quantization";
+pub use crate::data::KHR_MESH_QUANTIZATION;
 
 /// `--basis`: how many basis targets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]

@@ -27,9 +27,8 @@ pub mod constraints;
 pub mod fabrik;
 pub mod solver;
 
-pub use crate::bake::ik::SolverKind;
 pub use ccd::Ccd;
 pub use chain::{Chain, Joint, Pose};
 pub use constraints::{Constraints, Limit, TipAxis};
 pub use fabrik::Fabrik;
-pub use solver::{IkSolver, SolveReport, SolverConfig};
+pub use solver::{IkSolver, SolveReport, SolverConfig, SolverKind};

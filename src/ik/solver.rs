@@ -394,3 +394,25 @@ pub(crate) fn unfold_if_degenerate(
     }
     true
 }
+
+/// Which solver runs (`--solver`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum SolverKind {
+    /// FABRIK (the default).
+    #[default]
+    Fabrik,
+    /// Cyclic coordinate descent.
+    Ccd,
+}
+
+impl SolverKind {
+    /// The option value (`fabrik`, `ccd`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SolverKind::Fabrik => "fabrik",
+            SolverKind::Ccd => "ccd",
+        }
+    }
+}

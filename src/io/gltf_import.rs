@@ -52,7 +52,7 @@ pub fn import_gltf_for_inspection(path: &Path) -> Result<Imported> {
     if !root
         .extensions_required
         .iter()
-        .any(|e| e == crate::export::basis::KHR_MESH_QUANTIZATION)
+        .any(|e| e == crate::data::KHR_MESH_QUANTIZATION)
     {
         return import_gltf(path);
     }
@@ -67,8 +67,7 @@ pub fn import_gltf_for_inspection(path: &Path) -> Result<Imported> {
         &mut |p: &dyn Fn() -> gltf::json::Path, e| {
             let p = p();
             let quantization = matches!(e, gltf::json::validation::Error::Unsupported)
-                && p.as_str()
-                    .contains(crate::export::basis::KHR_MESH_QUANTIZATION);
+                && p.as_str().contains(crate::data::KHR_MESH_QUANTIZATION);
             if !quantization {
                 errors.push((p, e));
             }
