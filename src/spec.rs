@@ -212,6 +212,35 @@ pub mod de {
     }
 }
 
+/// Splits `FILE#NAME` at its last `#` when FILE names a mesh file (.obj, .gltf, .glb); a `#`
+/// elsewhere stays part of the file name (`--collider mesh:FILE#NAME`, `--body FILE.glb#NAME`).
+pub fn split_mesh_part(
+    rest: &str,
+) -> std::result::Result<(std::path::PathBuf, Option<String>), String> {
+    let rest = rest.trim();
+    if let Some((file, part)) = rest.rsplit_once('#') {
+        let ext = std::path::Path::new(file)
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if matches!(ext.as_deref(), Some("obj" | "gltf" | "glb")) {
+            if file.trim().is_empty() {
+                return Err("the mesh file name is empty".into());
+            }
+            let part = part.trim();
+            if part.is_empty() {
+                return Err(format!(
+                    "the object name after `#` is empty (mesh:{file}#NAME, or mesh:{file} for every object)"
+                ));
+            }
+            return Ok((std::path::PathBuf::from(file.trim()), Some(part.to_owned())));
+        }
+    }
+    if rest.is_empty() {
+        return Err("the mesh file name is empty".into());
+    }
+    Ok((std::path::PathBuf::from(rest), None))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

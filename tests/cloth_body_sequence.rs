@@ -102,6 +102,19 @@ fn job(dir: &Path, pattern: PathBuf, output: &Path) -> ClothJob {
     }
 }
 
+/// Asserts that `p` is a corner of the box at `t` seconds (frame `k`): at x, z = ±HALF, at the
+/// top's height `top_at(t)` for a top corner, at the bottom otherwise.
+#[track_caller]
+fn assert_box_corner(p: DVec3, top: bool, t: f64, k: usize) {
+    assert!((p.x.abs() - HALF).abs() < 1e-6 && (p.z.abs() - HALF).abs() < 1e-6);
+    let want = if top { top_at(t) } else { BOTTOM };
+    assert!(
+        (p.y - want).abs() < 1e-5,
+        "frame {k}: body vertex at y = {}, the sequence has {want}",
+        p.y
+    );
+}
+
 /// One node's mesh positions as played at key `k` of the first animation: base + Σ wᵢ·δᵢ.
 struct Played {
     base: Vec<DVec3>,
@@ -193,17 +206,7 @@ fn a_rising_box_lifts_the_sheet_and_the_file_plays_the_box() {
         assert!((t - k as f64 / 50.0).abs() < 1e-6);
         let played = boxed.at_key(k);
         for (p, base) in played.iter().zip(&boxed.base) {
-            assert!((p.x.abs() - HALF).abs() < 1e-6 && (p.z.abs() - HALF).abs() < 1e-6);
-            let want = if base.y > BOTTOM + 1e-6 {
-                top_at(t)
-            } else {
-                BOTTOM
-            };
-            assert!(
-                (p.y - want).abs() < 1e-5,
-                "frame {k}: body vertex at y = {}, the sequence has {want}",
-                p.y
-            );
+            assert_box_corner(*p, base.y > BOTTOM + 1e-6, t, k);
         }
     }
 
@@ -377,28 +380,18 @@ fn a_body_from_a_morph_animated_gltf_moves_as_its_sequence() {
     let first = dir.path().join("first.glb");
     bake_cloth(&job(dir.path(), pattern, &first), &mut |_, _| {}).unwrap();
     let named = PathBuf::from(format!("{}#sheet_body", first.display()));
-    let body = load_gltf_sequence(&named, None).unwrap();
+    let body = load_gltf_sequence(&first, Some("sheet_body"), None).unwrap();
     assert_eq!((body.fps, body.frames.len()), (50.0, 51));
     assert_eq!(body.mesh.positions.len(), 8);
     for (k, frame) in body.frames.iter().enumerate() {
         let t = k as f64 / 50.0;
         for p in frame {
-            assert!((p.x.abs() - HALF).abs() < 1e-6 && (p.z.abs() - HALF).abs() < 1e-6);
-            let want = if p.y > BOTTOM + 1e-3 {
-                top_at(t)
-            } else {
-                BOTTOM
-            };
-            assert!(
-                (p.y - want).abs() < 1e-5,
-                "frame {k}: {} against {want}",
-                p.y
-            );
+            assert_box_corner(*p, p.y > BOTTOM + 1e-3, t, k);
         }
     }
-    let unnamed = load_gltf_sequence(&first, None).unwrap();
+    let unnamed = load_gltf_sequence(&first, None, None).unwrap();
     assert!(unnamed.mesh.positions.len() > 8, "the sheet comes first");
-    let err = load_gltf_sequence(&common::mesh_path("RiggedSimple.gltf"), None)
+    let err = load_gltf_sequence(&common::mesh_path("RiggedSimple.gltf"), None, None)
         .unwrap_err()
         .to_string();
     assert!(err.contains("rig") && err.contains("morph-target"), "{err}");

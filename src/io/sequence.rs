@@ -277,21 +277,8 @@ pub fn load_obj_sequence(pattern: &Path, fps: f64, start: Option<u64>) -> Result
     })
 }
 
-/// `FILE.glb#NAME` as the file and the part's name (the path as given when it has no such
-/// suffix after a glTF extension).
-fn split_part(path: &Path) -> (PathBuf, Option<String>) {
-    let text = path.to_string_lossy();
-    if let Some((file, part)) = text.rsplit_once('#') {
-        let lower = file.to_ascii_lowercase();
-        if (lower.ends_with(".glb") || lower.ends_with(".gltf")) && !part.is_empty() {
-            return (PathBuf::from(file), Some(part.to_owned()));
-        }
-    }
-    (path.to_path_buf(), None)
-}
-
 /// Reads a body animated by morph targets from a glTF file (`--body FILE.glb[#NAME]`): the
-/// first mesh node (named NAME, or whose mesh is) whose weights an animation drives (the first
+/// first mesh node (named `part`, or whose mesh is) whose weights an animation drives (the first
 /// such animation), its triangle primitives
 /// merged and placed as [`super::gltf_mesh::load_gltf_mesh`] places a mesh, sampled every 1/fps
 /// seconds from the animation's first key to its last. `fps` is `--body-fps`, else the rate a
@@ -301,9 +288,11 @@ fn split_part(path: &Path) -> (PathBuf, Option<String>) {
 /// [`Error::Param`] naming `body` for a file without such a mesh or a cubic-spline weights
 /// track, and `body_fps` when no rate can be found; [`Error::InvalidInput`] for targets without
 /// positions or weights of the wrong length; the glTF reader's errors.
-pub fn load_gltf_sequence(path: &Path, fps: Option<f64>) -> Result<MeshSequence> {
-    let (path, part) = split_part(path);
-    let path = path.as_path();
+pub fn load_gltf_sequence(
+    path: &Path,
+    part: Option<&str>,
+    fps: Option<f64>,
+) -> Result<MeshSequence> {
     let (doc, buffers) = super::gltf_import::import_gltf(path)?;
     let buffer = |b: gltf::Buffer<'_>| buffers.get(b.index()).map(|d| &d[..]);
     let driven = doc.animations().find_map(|a| {
@@ -312,7 +301,7 @@ pub fn load_gltf_sequence(path: &Path, fps: Option<f64>) -> Result<MeshSequence>
             let morphs = node
                 .mesh()
                 .is_some_and(|m| m.primitives().any(|p| p.morph_targets().next().is_some()));
-            let named = part.as_deref().is_none_or(|p| {
+            let named = part.is_none_or(|p| {
                 node.name() == Some(p) || node.mesh().and_then(|m| m.name()) == Some(p)
             });
             (c.target().property() == gltf::animation::Property::MorphTargetWeights
@@ -361,7 +350,9 @@ pub fn load_gltf_sequence(path: &Path, fps: Option<f64>) -> Result<MeshSequence>
     };
     let transform = super::gltf_mesh::world_transform_of_mesh(&doc, gmesh.index());
     let mesh = super::gltf_mesh::read_mesh(path, &buffers, gmesh.clone(), transform)?;
-    // Per render vertex (the primitives' vertices in order), each target's position delta.
+    // Per render vertex (the primitives' vertices in order), its position and each target's
+    // position delta, in the mesh's own frame.
+    let mut base: Vec<DVec3> = Vec::new();
     let mut deltas: Vec<Vec<[f32; 3]>> = Vec::new();
     let mut vertices = 0;
     for prim in gmesh.primitives() {
@@ -369,9 +360,12 @@ pub fn load_gltf_sequence(path: &Path, fps: Option<f64>) -> Result<MeshSequence>
         if prim.mode() != gltf::mesh::Mode::Triangles {
             continue;
         }
-        let Some(count) = r.read_positions().map(Iterator::count) else {
+        let Some(positions) = r.read_positions() else {
             continue;
         };
+        let before = base.len();
+        base.extend(positions.map(|p| DVec3::from(p.map(f64::from))));
+        let count = base.len() - before;
         for (t, (positions, _, _)) in r.read_morph_targets().enumerate() {
             if deltas.len() <= t {
                 deltas.push(vec![[0.0; 3]; vertices]);
@@ -438,13 +432,6 @@ pub fn load_gltf_sequence(path: &Path, fps: Option<f64>) -> Result<MeshSequence>
             .map(|(a, b)| a + (b - a) * s)
             .collect()
     };
-    let base: Vec<DVec3> = (0..vertices)
-        .map(|v| {
-            transform
-                .inverse()
-                .transform_point3(mesh.positions[mesh.render_vertices[v].particle as usize])
-        })
-        .collect();
     let frames: Vec<Vec<DVec3>> = (0..count)
         .map(|k| {
             let w = weights_at(start + k as f64 / fps);

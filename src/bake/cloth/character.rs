@@ -229,7 +229,7 @@ pub fn bake_on_character(
         ),
     };
     if basis.is_none() {
-        check_target_count(job, morph.stats.targets, true)?;
+        check_target_count(job, morph.stats.targets)?;
     }
     let mut files = compress(job, morph.files)?;
     let gltf_bytes = files.iter().map(|(_, b)| b.len() as u64).sum();

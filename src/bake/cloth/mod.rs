@@ -1208,27 +1208,20 @@ pub(crate) fn basis_options(job: &ClothJob) -> Option<BasisOptions> {
 }
 
 /// Refuses a per-frame morph cache of more targets than `--max-targets` allows, suggesting a
-/// basis where the bake can write one (`basis_possible`) and a larger keyframe tolerance.
-pub(crate) fn check_target_count(
-    job: &ClothJob,
-    targets: usize,
-    basis_possible: bool,
-) -> Result<()> {
-    let Some(n) = job.max_targets.filter(|&n| targets > n) else {
-        return Ok(());
-    };
-    let head = format!("{n}: the cache needs {targets} targets (one per kept frame); use ");
-    let message = if basis_possible {
-        text!(
-            head,
-            Param::Basis,
-            " auto, or a larger ",
-            Param::KeyframeTolerance
-        )
-    } else {
-        text!(head, "a larger ", Param::KeyframeTolerance)
-    };
-    Err(Error::param_value(Param::MaxTargets, message))
+/// basis or a larger keyframe tolerance.
+pub(crate) fn check_target_count(job: &ClothJob, targets: usize) -> Result<()> {
+    match job.max_targets.filter(|&n| targets > n) {
+        Some(n) => Err(Error::param_value(
+            Param::MaxTargets,
+            text!(
+                format!("{n}: the cache needs {targets} targets (one per kept frame); use "),
+                Param::Basis,
+                " auto, or a larger ",
+                Param::KeyframeTolerance
+            ),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// The glTF's files after `--compress`: as encoded, or with EXT_meshopt_compression.
@@ -1260,7 +1253,7 @@ fn export(
         None => {
             let morph =
                 encode_morph_gltf_with_body(&job.output, &model.mesh, &frames, &options, body)?;
-            check_target_count(job, morph.stats.targets, true)?;
+            check_target_count(job, morph.stats.targets)?;
             (morph, None)
         }
     };

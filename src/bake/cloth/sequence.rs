@@ -21,6 +21,7 @@ use crate::export::{AnimatedBody, MorphOptions, RenderFrames};
 use crate::io::sequence::{load_gltf_sequence, load_obj_sequence};
 use crate::param::Param;
 use crate::spec::positive;
+use crate::spec::split_mesh_part;
 use crate::text;
 
 /// Runs a `--body` bake: check the options, read the sequence, simulate, export, report.
@@ -65,11 +66,20 @@ pub fn bake_on_sequence(
             ),
         ));
     }
-    let is_gltf = {
-        let text = pattern.to_string_lossy().to_ascii_lowercase();
-        let file = text.rsplit_once('#').map_or(text.as_str(), |(f, _)| f);
-        file.ends_with(".glb") || file.ends_with(".gltf")
-    };
+    let (file, part) = split_mesh_part(&pattern.to_string_lossy()).map_err(|_| {
+        Error::param_value(
+            Param::Body,
+            format!(
+                "`{}`: give a file, and a mesh's name after `#` or no `#` (FILE.glb#NAME, or \
+                 FILE.glb for the first animated mesh)",
+                pattern.display()
+            ),
+        )
+    })?;
+    let is_gltf = file
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf"));
     if is_gltf && job.body_start.is_some() {
         return Err(Error::param_value(
             Param::BodyStart,
@@ -90,7 +100,7 @@ pub fn bake_on_sequence(
     super::check_export_options(job)?;
 
     let sequence = match body_fps {
-        _ if is_gltf => load_gltf_sequence(&pattern, body_fps)?,
+        _ if is_gltf => load_gltf_sequence(&file, part.as_deref(), body_fps)?,
         Some(f) => load_obj_sequence(&pattern, f, job.body_start)?,
         None => {
             return Err(Error::param_value(

@@ -63,33 +63,6 @@ impl ColliderSpec {
     }
 }
 
-/// Splits `FILE#NAME` at its last `#` when FILE names a mesh file (.obj, .gltf, .glb); a `#`
-/// elsewhere stays part of the file name.
-fn split_mesh_part(rest: &str) -> std::result::Result<(PathBuf, Option<String>), String> {
-    let rest = rest.trim();
-    if let Some((file, part)) = rest.rsplit_once('#') {
-        let ext = std::path::Path::new(file)
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase());
-        if matches!(ext.as_deref(), Some("obj" | "gltf" | "glb")) {
-            if file.trim().is_empty() {
-                return Err("the mesh file name is empty".into());
-            }
-            let part = part.trim();
-            if part.is_empty() {
-                return Err(format!(
-                    "the object name after `#` is empty (mesh:{file}#NAME, or mesh:{file} for every object)"
-                ));
-            }
-            return Ok((PathBuf::from(file.trim()), Some(part.to_owned())));
-        }
-    }
-    if rest.is_empty() {
-        return Err("the mesh file name is empty".into());
-    }
-    Ok((PathBuf::from(rest), None))
-}
-
 impl FromStr for ColliderSpec {
     type Err = Error;
 
@@ -125,7 +98,7 @@ impl FromStr for ColliderSpec {
                 Ok(ColliderSpec::Box(a.min(b), a.max(b)))
             }
             "mesh" => {
-                let (path, part) = split_mesh_part(rest).map_err(bad)?;
+                let (path, part) = crate::spec::split_mesh_part(rest).map_err(bad)?;
                 Ok(ColliderSpec::Mesh { path, part })
             }
             other => Err(bad(format!(
