@@ -76,6 +76,8 @@ pub enum Error {
         frame: usize,
         /// What was detected (for example "non-finite position at particle 12").
         reason: String,
+        /// The options that could help, for the solver that diverged (see [`advise`]).
+        advice: Vec<Param>,
     },
     /// The sparse Cholesky factorisation failed (matrix not positive definite).
     Factorisation(String),
@@ -163,14 +165,22 @@ impl Error {
             Error::EmptyPin { spec, hint } => {
                 format!("{} {spec}: selects no particle{hint}", v(Param::Pin))
             }
-            Error::Diverged { frame, reason } => format!(
-                "simulation diverged at frame {frame} ({reason}); try a smaller time step \
-                 (more {} or a higher {}), lower {}, or more {}",
-                v(Param::Substeps),
-                v(Param::Fps),
-                v(Param::Stiffness),
-                v(Param::Iterations)
-            ),
+            Error::Diverged {
+                frame,
+                reason,
+                advice,
+            } => {
+                let mut m = format!("simulation diverged at frame {frame} ({reason})");
+                for (k, p) in advice.iter().enumerate() {
+                    m.push_str(match k {
+                        0 => "; try ",
+                        _ if k + 1 == advice.len() => " or ",
+                        _ => ", ",
+                    });
+                    m.push_str(&advise(*p, v));
+                }
+                m
+            }
             Error::Factorisation(m) => format!("sparse factorisation failed: {m}"),
             Error::Gltf { path, source } => {
                 format!("{}: {}", path.display(), describe_gltf(source))
@@ -293,6 +303,16 @@ pub enum ColliderMeshProblem {
         /// How many degenerate triangles were dropped.
         dropped: usize,
     },
+}
+
+/// How option `p` helps a diverging simulation, for [`Error::Diverged`]'s advice, named by `v`.
+fn advise(p: Param, v: Vocabulary<'_>) -> String {
+    match p {
+        Param::Substeps => format!("more {}", v(p)),
+        Param::Fps | Param::MaxNewton | Param::Iterations => format!("a higher {}", v(p)),
+        Param::Stiffness => format!("a lower {}", v(p)),
+        _ => v(p),
+    }
 }
 
 fn path_suffix(path: Option<&std::path::Path>) -> String {

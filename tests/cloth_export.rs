@@ -229,6 +229,11 @@ fn cloth_starting_behind_a_barrier_is_an_error_and_writes_nothing() {
         err.contains("start time step 1 behind a collider's surface"),
         "{err}"
     );
+    // Newton's advice: a shorter step, not the local/global method's iterations.
+    assert!(
+        err.contains("substeps") && !err.contains("iterations"),
+        "{err}"
+    );
     assert!(names_in(dir.path()).is_empty(), "nothing written");
 }
 

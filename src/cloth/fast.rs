@@ -956,6 +956,7 @@ impl StepSolver for FastSolver {
             return Err(crate::error::Error::Diverged {
                 frame: 0,
                 reason: "non-finite residual in the local/global iteration".into(),
+                advice: Vec::new(),
             });
         }
         for (x, p) in x.iter_mut().zip(&self.pos) {

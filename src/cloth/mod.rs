@@ -281,7 +281,11 @@ pub fn simulate_driven(
             }
             let s = solver.step(&mut x, &mut v).map_err(|e| match e {
                 // Solvers don't know frames: name the frame being computed.
-                Error::Diverged { reason, .. } => Error::Diverged { frame, reason },
+                Error::Diverged { reason, advice, .. } => Error::Diverged {
+                    frame,
+                    reason,
+                    advice,
+                },
                 e => e,
             })?;
             stats.iterations += s.iterations;
@@ -415,6 +419,7 @@ impl DivergenceGuard {
                 return Err(Error::Diverged {
                     frame,
                     reason: format!("non-finite position at particle {particle}"),
+                    advice: Vec::new(),
                 });
             }
             if p.distance(self.centre) > self.radius {
@@ -424,6 +429,7 @@ impl DivergenceGuard {
                         "particle {particle} flew {:.3e} m from the body's centre",
                         p.distance(self.centre)
                     ),
+                    advice: Vec::new(),
                 });
             }
         }

@@ -1295,15 +1295,22 @@ impl NewtonSolver {
             }
         }
         self.x0 = x0;
+        let alone = self.self_contact.is_none();
         if let Some(c) = self.contact.as_mut().filter(|c| c.is_barrier()) {
             if behind > 0 {
                 return Err(Error::Diverged {
                     frame: 0,
                     reason: format!(
                         "{behind} particles start time step {} behind a collider's surface, where \
-                         the barrier cannot push them out (try the constraint contact model)",
-                        self.steps + 1
+                         the barrier cannot push them out{}",
+                        self.steps + 1,
+                        if alone {
+                            " (the constraint contact model may)"
+                        } else {
+                            ""
+                        }
                     ),
+                    advice: Vec::new(),
                 });
             }
             c.set_iterate(x);
@@ -1318,6 +1325,7 @@ impl NewtonSolver {
                 "non-finite {what} in Newton iteration {iteration} of time step {}",
                 self.steps + 1
             ),
+            advice: Vec::new(),
         }
     }
 }

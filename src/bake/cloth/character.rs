@@ -163,7 +163,24 @@ pub fn bake_on_character(
         &drive,
         job.body_collider == Switch::On,
         &mut |f| progress(f, total),
-    )?;
+    )
+    .map_err(|e| match e {
+        // Frames count from the animation's start; the blend-in before it is named as such.
+        Error::Diverged {
+            frame,
+            reason,
+            advice,
+        } => Error::Diverged {
+            frame: frame.saturating_sub(blend_frames),
+            reason: if frame <= blend_frames {
+                format!("{reason}; in blend-in frame {frame} of {blend_frames}, before the animation")
+            } else {
+                reason
+            },
+            advice,
+        },
+        e => e,
+    })?;
     let PreparedCloth { model, .. } = &prepared;
 
     // The written loops: frames first_written..=total, as frames 0.. of the output.

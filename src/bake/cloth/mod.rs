@@ -865,7 +865,8 @@ pub fn simulate_cloth(
     let PreparedCloth { model, params, .. } = &prepared;
     let mut solver = make_solver(model, params)?;
     let frames = params.frames;
-    let simulation = simulate(model, solver.as_mut(), params, &mut |f| progress(f, frames))?;
+    let simulation = simulate(model, solver.as_mut(), params, &mut |f| progress(f, frames))
+        .map_err(|e| advised(e, params.solver))?;
     Ok(SimulatedCloth {
         prepared,
         simulation,
@@ -959,8 +960,26 @@ pub(crate) fn simulate_on_body(
         params,
         Some(crate::cloth::Driven { drive, body_shape }),
         progress,
-    )?;
+    )
+    .map_err(|e| advised(e, params.solver))?;
     Ok((sim, body_triangles))
+}
+
+/// `e` with the options that could help a diverging `solver`: a shorter time step for both, more
+/// iterations for the local/global method (Newton stops on its residual, flagging a step it
+/// could not converge, rather than diverging for want of iterations).
+fn advised(e: Error, solver: SolverKind) -> Error {
+    match e {
+        Error::Diverged { frame, reason, .. } => Error::Diverged {
+            frame,
+            reason,
+            advice: match solver {
+                SolverKind::Newton => vec![Param::Substeps, Param::Fps],
+                SolverKind::Fast => vec![Param::Substeps, Param::Fps, Param::Iterations],
+            },
+        },
+        e => e,
+    }
 }
 
 /// The quality section of written frames `first..` of `sim` (frame `first` is the output's
