@@ -1,5 +1,6 @@
 //! VAT export (`--vat`): the EXR images, read back with the `exr` crate, hold exactly what the
-//! morph-target glTF (read back with the `gltf` crate) plays at every frame.
+//! morph-target glTF (read back with the `gltf` crate) plays at every frame, a garment's in a
+//! character's glTF (`--rig`) included.
 
 mod common;
 
@@ -322,4 +323,183 @@ fn the_gltf_and_vat_are_replaced_together_or_not_at_all() {
         ["lab.exr", "lab.glb", "lab.json"],
         "no temporary left behind"
     );
+}
+
+/// The garment of a character's glTF as the `gltf` crate reads it: its node's scale, its
+/// morph cache (base, deltas, NORMAL base and deltas) and its weights channel in the first
+/// animation (one key per written frame without `--keyframe-tolerance`).
+struct Garment {
+    scale: [f32; 3],
+    base: Vec<Vec3>,
+    deltas: Vec<Vec<Vec3>>,
+    normals: Vec<Vec3>,
+    normal_deltas: Vec<Vec<Vec3>>,
+    times: Vec<f32>,
+    weights: Vec<f32>,
+}
+
+impl Garment {
+    fn load(path: &Path, name: &str) -> Garment {
+        let (doc, buffers, _) = common::gltf_read::import(path).unwrap();
+        let node = doc.nodes().find(|n| n.name() == Some(name)).unwrap();
+        let (_, _, scale) = node.transform().decomposed();
+        let prim = node.mesh().unwrap().primitives().next().unwrap();
+        let reader = prim.reader(|b| Some(&buffers[b.index()]));
+        let v3 = |it: &mut dyn Iterator<Item = [f32; 3]>| it.map(Vec3::from).collect::<Vec<_>>();
+        let base = v3(&mut reader.read_positions().unwrap());
+        let normals = v3(&mut reader.read_normals().expect("NORMAL"));
+        let (mut deltas, mut normal_deltas) = (Vec::new(), Vec::new());
+        for (p, n, _) in reader.read_morph_targets() {
+            deltas.push(v3(&mut p.expect("POSITION delta")));
+            normal_deltas.push(match n {
+                Some(mut n) => v3(&mut n),
+                None => vec![Vec3::ZERO; base.len()],
+            });
+        }
+        let channel = doc
+            .animations()
+            .next()
+            .unwrap()
+            .channels()
+            .find(|c| {
+                c.target().node().index() == node.index()
+                    && c.target().property() == gltf::animation::Property::MorphTargetWeights
+            })
+            .expect("the garment's weights in the first animation");
+        let r = channel.reader(|b| Some(&buffers[b.index()]));
+        let times: Vec<f32> = r.read_inputs().unwrap().collect();
+        let weights = match r.read_outputs().unwrap() {
+            gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => w.into_f32().collect(),
+            _ => panic!("weights output"),
+        };
+        Garment {
+            scale,
+            base,
+            deltas,
+            normals,
+            normal_deltas,
+            times,
+            weights,
+        }
+    }
+
+    /// Base + Σ wⱼ·Δⱼ at key `k`, for positions and (unnormalised) normals.
+    fn at_key(&self, k: usize) -> (Vec<Vec3>, Vec<Vec3>) {
+        let n = self.deltas.len();
+        let w = &self.weights[k * n..(k + 1) * n];
+        let (mut p, mut q) = (self.base.clone(), self.normals.clone());
+        for (j, &wj) in w.iter().enumerate() {
+            if wj != 0.0 {
+                for v in 0..p.len() {
+                    p[v] += wj * self.deltas[j][v];
+                    q[v] += wj * self.normal_deltas[j][v];
+                }
+            }
+        }
+        (p, q)
+    }
+}
+
+/// A garment on a character (`--rig`) gets a VAT of its written loops: row f of the EXR
+/// (addressed by the manifest's layout, wrapped here) is what the character's glTF plays for the
+/// garment at its f-th key (base + morph targets by the keyed weights, object space, metres;
+/// the node scales by 1 / `--rig-scale`), every key a row, the manifest's fps and start the keys'
+/// times, written in the same set as the glTF and reported.
+#[test]
+fn a_garment_on_a_character_gets_a_vat_of_its_written_loops() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = ClothJob {
+        rig_scale: 0.5,
+        cycles: 2,
+        vat: Some(dir.path().join("rig.exr")),
+        vat_max_width: 16,
+        ..common::rigged_sheet(dir.path().join("rig.glb"))
+    };
+    let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+    let vat = report.vat.as_ref().expect("a VAT report");
+    let names: Vec<String> = report
+        .output
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["rig.glb", "rig.exr", "rig.normals.exr", "rig.json"]);
+    assert_eq!(vat.files, report.output[1..]);
+    let on_disk = |files: &[std::path::PathBuf]| -> u64 {
+        files
+            .iter()
+            .map(|p| std::fs::metadata(p).unwrap().len())
+            .sum()
+    };
+    assert_eq!(vat.bytes, on_disk(&vat.files));
+    assert_eq!(report.output_bytes, on_disk(&report.output));
+
+    let g = Garment::load(&job.output, "cache_sheet");
+    assert_eq!(
+        g.scale, [2.0; 3],
+        "the node scales metres to the rig's units"
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("rig.json")).unwrap()).unwrap();
+    let character = report.character.as_ref().unwrap();
+    let frames = job.cycles * character.frames_per_cycle + 1;
+    assert_eq!(g.times.len(), frames, "a key per written frame");
+    assert_eq!(json["frames"], frames);
+    assert_eq!(json["fps"], report.fps);
+    assert_eq!(json["gltf"], "rig.glb");
+    assert_eq!(json["positions"], "rig.exr");
+    assert_eq!(json["normals"], "rig.normals.exr");
+    assert_eq!(json["mode"], "absolute");
+    assert_eq!(json["vertex_count"], g.base.len());
+    let fps = json["fps"].as_f64().unwrap();
+    let start = json["start_time"].as_f64().unwrap();
+    assert!(start > 0.0, "RiggedSimple's animation starts after 0");
+    for (k, t) in g.times.iter().enumerate() {
+        let want = start + k as f64 / fps;
+        assert!(
+            (f64::from(*t) - want).abs() < 1e-5,
+            "key {k} at {t} s, the manifest's frame {k} at {want} s"
+        );
+    }
+
+    let (width, rows) = (
+        json["layout"]["width"].as_u64().unwrap() as usize,
+        json["layout"]["rows_per_frame"].as_u64().unwrap() as usize,
+    );
+    let n = g.base.len();
+    assert_eq!((width, rows), (16, n.div_ceil(16)));
+    let img = read_exr(&dir.path().join("rig.exr"));
+    let nrm = read_exr(&dir.path().join("rig.normals.exr"));
+    assert_eq!((img.width, img.height), (width, frames * rows));
+    assert_eq!((nrm.width, nrm.height), (width, frames * rows));
+    let texel = |image: &Exr, f: usize, v: usize| image.at(f * rows + v / width, v % width);
+    let bound = |k: &str| {
+        Vec3::from_slice(
+            &(0..3)
+                .map(|i| json["bounds"][k][i].as_f64().unwrap() as f32)
+                .collect::<Vec<_>>(),
+        )
+    };
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    let mut moved = 0.0f32;
+    for f in 0..frames {
+        let (want, want_n) = g.at_key(f);
+        for v in 0..n {
+            let got = texel(&img, f, v);
+            // base + (p − base) in f32 may differ from p in the last bit.
+            assert!(
+                (got - want[v]).abs().max_element() <= 1e-6 * (1.0 + want[v].abs().max_element()),
+                "frame {f} vertex {v}: VAT {got} against the glTF's {}",
+                want[v]
+            );
+            assert!(
+                normals_agree(f, texel(&nrm, f, v), want_n[v], texel(&nrm, 0, v)),
+                "normal frame {f} vertex {v}"
+            );
+            lo = lo.min(got);
+            hi = hi.max(got);
+            moved = moved.max(got.distance(texel(&img, 0, v)));
+        }
+    }
+    assert_eq!((bound("min"), bound("max")), (lo, hi));
+    assert!(moved > 0.01, "the garment moves with the bone: {moved} m");
 }

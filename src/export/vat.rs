@@ -48,6 +48,10 @@ pub struct VatOptions {
     pub max_width: usize,
     /// Frames per second: frame f is at f / fps seconds.
     pub fps: f64,
+    /// Time of frame 0 on the glTF's animation, seconds (frame f is keyed there at
+    /// `start_time + f / fps`): 0, or the driving animation's first key for a bake on a
+    /// character.
+    pub start_time: f64,
     /// Write `FILE.normals.exr`.
     pub normals: bool,
     /// File name of the glTF whose vertex order the images follow.
@@ -107,6 +111,9 @@ pub struct VatManifest {
     pub frames: usize,
     /// Frames per second: frame f plays at f / fps seconds.
     pub fps: f64,
+    /// Where frame 0 sits on the glTF's animation, seconds: the glTF keys frame f at
+    /// `start_time + f / fps` (0 but for a bake on a character whose animation starts later).
+    pub start_time: f64,
     /// Render vertices per frame.
     pub vertex_count: usize,
     /// What RGB holds in the position image.
@@ -199,6 +206,7 @@ pub fn encode_vat(path: &Path, frames: &RenderFrames, options: &VatOptions) -> R
         version: 1,
         frames: frames.frame_count(),
         fps: options.fps,
+        start_time: options.start_time,
         vertex_count: frames.vertex_count(),
         mode: options.mode,
         bounds: bounds(&positions),

@@ -1,15 +1,16 @@
 //! A garment baked on an animated character (`--rig`): the animation drives the pins and the
 //! body collider ([`crate::cloth::drive`]), loops are warmed up and cut, and the garment is
-//! written into the character's document ([`crate::export::character`]).
+//! written into the character's document ([`crate::export::character`]), with the VAT, point
+//! caches and USD layer asked for holding the same written loops.
 
 use glam::DVec3;
 use std::time::Instant;
 
 use super::{
     basis_options, check_export_options, check_target_count, compress, encode_point_caches,
-    encode_usd_layer, length_words, prepare_cloth, quality_report, report, scaled_words,
-    simulate_on_body, CacheReport, CharacterReport, ClothJob, ClothReport, Exported, PreparedCloth,
-    Switch,
+    encode_usd_layer, encode_vat_files, length_words, prepare_cloth, quality_report, report,
+    scaled_words, simulate_on_body, CacheReport, CharacterReport, ClothJob, ClothReport, Exported,
+    PreparedCloth, Switch,
 };
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::{FrameCache, SolverKind};
@@ -32,9 +33,8 @@ pub const SEAM_WARNING: f64 = 0.01;
 /// report.
 ///
 /// # Errors
-/// Option errors (a solver other than Newton, `--frames`, a VAT, which this bake does not
-/// write yet), rig errors (no such animation or joint, no skinned mesh to bind to), and those
-/// of [`super::bake_cloth`].
+/// Option errors (a solver other than Newton, `--frames`), rig errors (no such animation or
+/// joint, no skinned mesh to bind to), and those of [`super::bake_cloth`].
 pub fn bake_on_character(
     job: &ClothJob,
     progress: &mut dyn FnMut(usize, usize),
@@ -50,30 +50,17 @@ pub fn bake_on_character(
             ),
         ));
     }
-    for (given, param) in [
-        (job.frames.is_some(), Param::Frames),
-        (job.vat.is_some(), Param::Vat),
-    ] {
-        if given {
-            return Err(Error::param_value(
-                param,
-                text!(
-                    "not with ",
-                    Param::Rig,
-                    if param == Param::Frames {
-                        ": the frames follow the animation (use "
-                    } else {
-                        ": a bake on a character writes a morph cache per frame (without "
-                    },
-                    if param == Param::Frames {
-                        Param::Cycles
-                    } else {
-                        param
-                    },
-                    ")"
-                ),
-            ));
-        }
+    if job.frames.is_some() {
+        return Err(Error::param_value(
+            Param::Frames,
+            text!(
+                "not with ",
+                Param::Rig,
+                ": the frames follow the animation (use ",
+                Param::Cycles,
+                ")"
+            ),
+        ));
     }
     if job.cycles == 0 {
         return Err(Error::param_value(Param::Cycles, "0: must be at least 1"));
@@ -250,6 +237,10 @@ pub fn bake_on_character(
     }
     let mut files = compress(job, morph.files)?;
     let gltf_bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
+    // The VAT holds the written loops as the glTF's garment mesh does (its object space, metres;
+    // the glTF's garment node scales them by 1 / --rig-scale), frame 0 at the animation's start.
+    let (vat_files, vat) = encode_vat_files(job, &frames, fps, options.start_time)?;
+    files.extend(vat_files);
     // The caches hold the written loops as the glTF's garment mesh does (metres; the glTF's
     // garment node scales them by 1 / --rig-scale), keyed on the animation's times.
     let (cache_files, point_caches) =
@@ -275,7 +266,7 @@ pub fn bake_on_character(
             stats: morph.stats,
             basis,
         },
-        vat: None,
+        vat,
         point_caches,
         usd,
     };

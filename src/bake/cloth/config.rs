@@ -251,7 +251,8 @@ pub struct ClothJob {
     pub normals: Switch,
     /// Also write a vertex-animation texture: FILE.exr (32-bit float RGB positions, one row per
     /// frame from frame 0 at the top, one column per glTF vertex), FILE.normals.exr (unit normals,
-    /// same layout; not with --normals off) and FILE.json (layout, bounds, fps, glTF name).
+    /// same layout; not with --normals off) and FILE.json (layout, bounds, fps, start time, glTF
+    /// name).
     #[cfg_attr(feature = "cli", arg(long, value_name = "FILE.exr"))]
     pub vat: Option<PathBuf>,
     /// What the VAT's RGB stores: object-space positions, or offsets from the base mesh (frame 0).

@@ -1139,6 +1139,40 @@ fn encode_point_caches(
     Ok((files, reports))
 }
 
+/// Encodes the vertex-animation texture `--vat` asks for, if any: every frame of `frames` (the
+/// glTF's render vertices, in its vertex order; frame 0 keyed at `start_time` on the glTF's
+/// animation, frame k at `start_time + k / fps`), its manifest naming the job's glTF.
+pub(crate) fn encode_vat_files(
+    job: &ClothJob,
+    frames: &RenderFrames,
+    fps: f64,
+    start_time: f64,
+) -> Result<(Files, Option<VatReport>)> {
+    let Some(path) = &job.vat else {
+        return Ok((Vec::new(), None));
+    };
+    let gltf = job
+        .output
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let options = VatOptions {
+        mode: job.vat_mode,
+        max_width: job.vat_max_width,
+        fps,
+        start_time,
+        normals: job.normals == Switch::On,
+        gltf,
+    };
+    let encoded = encode_vat(path, frames, &options)?;
+    let report = VatReport {
+        files: encoded.files.iter().map(|(p, _)| p.clone()).collect(),
+        bytes: encoded.files.iter().map(|(_, b)| b.len() as u64).sum(),
+        manifest: encoded.manifest,
+    };
+    Ok((encoded.files, Some(report)))
+}
+
 /// Encodes the USD layer `--usd` asks for: the cloth (`cache`'s frames of `mesh`'s particles,
 /// frame k at time code `start_time × fps + k`), the static meshes and the moving `bodies` (a
 /// mesh sequence, a character's skinned meshes), each a mesh with time-sampled points.
@@ -1278,31 +1312,8 @@ fn export(
     };
     let mut files = compress(job, morph.files)?;
     let gltf_bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
-    let vat = match &job.vat {
-        Some(path) => {
-            let gltf = job
-                .output
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            let vat_options = VatOptions {
-                mode: job.vat_mode,
-                max_width: job.vat_max_width,
-                fps: options.fps,
-                normals: job.normals == Switch::On,
-                gltf,
-            };
-            let encoded = encode_vat(path, &frames, &vat_options)?;
-            let report = VatReport {
-                files: encoded.files.iter().map(|(p, _)| p.clone()).collect(),
-                bytes: encoded.files.iter().map(|(_, b)| b.len() as u64).sum(),
-                manifest: encoded.manifest,
-            };
-            files.extend(encoded.files);
-            Some(report)
-        }
-        None => None,
-    };
+    let (vat_files, vat) = encode_vat_files(job, &frames, options.fps, options.start_time)?;
+    files.extend(vat_files);
     let (cache_files, point_caches) =
         encode_point_caches(job, &model.mesh, cache, options.fps, options.start_time)?;
     files.extend(cache_files);
