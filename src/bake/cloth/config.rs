@@ -172,9 +172,10 @@ pub struct ClothJob {
     pub max_newton: usize,
     /// Newton: Gauss–Seidel sweeps (one local Newton step per particle) after each iteration;
     /// 0 turns them off. They shorten Newton on stiff cloth without changing the tolerance a
-    /// step is solved to.
-    #[cfg_attr(feature = "cli", arg(long, default_value_t = crate::cloth::newton::DEFAULT_SWEEPS, value_name = "N"))]
-    pub sweeps: usize,
+    /// step is solved to [default: 10; 0 with --self-contact on, whose pairs the sweeps do not
+    /// see]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
+    pub sweeps: Option<usize>,
     /// Threads the bake may use: with two, Newton's Gauss–Seidel sweeps move the two halves of a
     /// large mesh at once, and its factor's two halves are factored and solved at once, with the
     /// same result as on one [default: every core; in a scene, the cores shared among the jobs
@@ -515,7 +516,7 @@ impl Default for ClothJob {
             max_iterations: None,
             iterations: defaults::ITERATIONS,
             max_newton: crate::cloth::newton::DEFAULT_MAX_ITERATIONS,
-            sweeps: crate::cloth::newton::DEFAULT_SWEEPS,
+            sweeps: None,
             threads: None,
             material: None,
             stretch: None,

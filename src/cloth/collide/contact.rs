@@ -388,7 +388,14 @@ impl NewtonContact {
             if feasible {
                 continue;
             }
+            // Pinched where two surfaces close in closer than two layers (an arm against the
+            // torso, overlapping pieces of one body): projecting out of one pushes the particle
+            // behind the other. Then it stays where it starts as the colliders see it (carried
+            // with the surface it is on), in front of every surface there, and its layers thin.
             let at = self.iterate[i];
+            if self.behind_any(i, *p, at) {
+                *p = at;
+            }
             for (j, shape) in self.colliders.shapes.iter().enumerate() {
                 let k = i * self.colliders.shapes.len() + j;
                 let (lo, width) = barrier_band(self.layer(i, j));
@@ -405,6 +412,16 @@ impl NewtonContact {
             }
         }
         behind
+    }
+
+    /// True when particle `i` at `p`, looked at from `at`, is on or behind a collider's surface.
+    fn behind_any(&self, i: usize, p: DVec3, at: DVec3) -> bool {
+        self.colliders.shapes.iter().enumerate().any(|(j, shape)| {
+            let (lo, width) = barrier_band(self.layer(i, j));
+            shape
+                .contact(p, at, self.reach(lo + width, p, at))
+                .is_some_and(|s| s.distance <= 0.0)
+        })
     }
 
     /// The barrier energy at `x`, joules: infinite where a particle is at or below a band's
