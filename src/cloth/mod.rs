@@ -34,7 +34,7 @@ use glam::DVec3;
 
 pub use fast::FastSolver;
 pub use model::ClothModel;
-pub use newton::{BendingFactor, NewtonSolver};
+pub use newton::{BendingFactor, NewtonDiagnostics, NewtonSolver};
 pub use system::{ReducedSystem, StepParams};
 pub use wind::{Aerodynamics, Wind};
 

@@ -240,6 +240,26 @@ impl std::fmt::Debug for Scratch {
     }
 }
 
+/// What [`NewtonSolver::diagnostics`] shows of the last step: per free particle, in solver
+/// order (all zeros, and none held, before the first step).
+#[derive(Debug, Clone, Copy)]
+pub struct NewtonDiagnostics<'a> {
+    /// Positions at the start of the step, m.
+    pub x0: &'a [DVec3],
+    /// The inertial target the step's objective pulls towards ([`ReducedSystem::predict`]), m.
+    pub y: &'a [DVec3],
+    /// ∇g at the step's final iterate, N.
+    pub grad: &'a [DVec3],
+    /// ∇g less the normal parts the colliders hold (equal to `grad` without colliders, and
+    /// with the barrier contact model), N; the step's residual is its norm over
+    /// [`ReducedSystem::force_scale`].
+    pub free_grad: &'a [DVec3],
+    /// Per particle: the normal of the collider holding it at the final iterate, if any.
+    pub held: &'a [Option<DVec3>],
+    /// The colliders the step ran against (with their moved shapes), when there are any.
+    pub colliders: Option<&'a Colliders>,
+}
+
 /// Newton's method with a backtracking line search and a reused symbolic factorisation.
 #[derive(Debug)]
 pub struct NewtonSolver {
@@ -844,6 +864,19 @@ impl NewtonSolver {
     /// search took in each iteration of the last step.
     pub fn step_lengths(&self) -> Option<&[f64]> {
         self.step_lengths.as_deref()
+    }
+
+    /// Newton's working vectors at the end of the last step, read-only, for diagnostics
+    /// (`examples/newton_probe.rs` splits the gradient into its terms with them).
+    pub fn diagnostics(&self) -> NewtonDiagnostics<'_> {
+        NewtonDiagnostics {
+            x0: &self.x0,
+            y: &self.y,
+            grad: &self.grad,
+            free_grad: &self.free_grad,
+            held: &self.held,
+            colliders: self.contact.as_ref().map(NewtonContact::colliders),
+        }
     }
 
     /// Stored entries of the Hessian's upper triangle.
@@ -2103,6 +2136,53 @@ mod tests {
         }
     }
 
+    /// The diagnostics show the last step's state: its start, its residual as the free
+    /// gradient's norm, and the colliders' share of the gradient only at the held particles,
+    /// along their normals.
+    #[test]
+    fn diagnostics_show_the_last_steps_state() {
+        use crate::cloth::collide::{ContactModel, HalfSpace};
+        let (sys, mut x) = lab_system_pinned(6, false);
+        let n = sys.len();
+        let scale = sys.force_scale();
+        let t = 0.005;
+        // The floor's layer 0.1 mm below the sheet: it lands within a few steps.
+        let floor = HalfSpace::new(DVec3::Y, 1.5 - t - 1e-4).unwrap();
+        let colliders = Colliders {
+            shapes: vec![Collider::Plane(floor)],
+            thickness: t,
+            friction: 0.3,
+            model: ContactModel::Constraint,
+        };
+        let mut solver = NewtonSolver::new(sys, DEFAULT_TOLERANCE, DEFAULT_MAX_ITERATIONS)
+            .unwrap()
+            .with_colliders(Some(colliders));
+        let mut v = vec![DVec3::ZERO; n];
+        let mut held = 0;
+        for _ in 0..10 {
+            let start = x.clone();
+            let stats = solver.step(&mut x, &mut v).unwrap();
+            let d = solver.diagnostics();
+            assert_eq!(d.x0, &start[..]);
+            assert!(d.y.len() == n && d.grad.len() == n && d.free_grad.len() == n);
+            assert_eq!(d.held.len(), n);
+            assert_eq!(
+                crate::cloth::system::norm(d.free_grad) / scale,
+                stats.residual
+            );
+            assert_eq!(d.colliders.map(|c| c.thickness), Some(t));
+            for i in 0..n {
+                let held_part = d.grad[i] - d.free_grad[i];
+                match d.held[i] {
+                    Some(normal) => assert!(held_part.cross(normal).length() < 1e-12),
+                    None => assert_eq!(held_part, DVec3::ZERO),
+                }
+            }
+            held = d.held.iter().filter(|h| h.is_some()).count();
+        }
+        assert!(held > 0, "nothing rests on the floor");
+    }
+
     #[test]
     fn non_finite_state_is_an_error() {
         let (sys, mut x) = lab_system(4);
@@ -2115,7 +2195,3 @@ mod tests {
         ));
     }
 }
-
-#[cfg(test)]
-#[path = "newton_probe.rs"]
-mod probe;

@@ -1,33 +1,43 @@
-//! Diagnostics for Newton on real garments (ignored test, run by hand):
+//! Diagnostics for Newton on real garments, run by hand (feature `probe`):
 //!
 //! ```text
 //! PROBE_MESH=dress_draped.obj PROBE_COLLIDER=mannequin.obj PROBE_STEPS=3 \
-//!     cargo test --release --lib newton::probe -- --ignored --nocapture
+//!     cargo run --release --example newton_probe --features probe
 //! ```
 //!
-//! Other knobs: `PROBE_PIN` (a `--pin` spec), `PROBE_SHAPE` (a `--collider` spec instead of a
-//! mesh), `PROBE_JAM`, `PROBE_BEND_REST` (`flat` or `mesh`), `PROBE_SUBSTEPS`, `PROBE_BEND`,
-//! `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP`, `PROBE_TRANSLATE` (x,y,z in metres, as
-//! the garments bench raises circle_skirt above the table), `PROBE_CONTACT` (`constraint` or
-//! `barrier`), `PROBE_DOUBLE` (set: double-precision factors only); every step also prints the
-//! line search's step lengths α.
+//! `PROBE_MESH` and `PROBE_COLLIDER` are files in `meshes/garments/` (`PROBE_COLLIDER=none`: no
+//! collider). Other knobs: `PROBE_PIN` (a `--pin` spec), `PROBE_SHAPE` (a `--collider` spec
+//! instead of a mesh), `PROBE_JAM`, `PROBE_BEND_REST` (`flat` or `mesh`), `PROBE_SUBSTEPS`,
+//! `PROBE_BEND`, `PROBE_THICKNESS`, `PROBE_FRICTION`, `PROBE_CAP` (Newton iterations per step,
+//! default 50), `PROBE_SWEEPS`, `PROBE_TRANSLATE` (x,y,z in metres, as the garments bench raises
+//! circle_skirt above the table), `PROBE_CONTACT` (`constraint` or `barrier`), `PROBE_DOUBLE`
+//! (set: double-precision factors only); every step also prints the line search's step
+//! lengths α.
 //!
 //! Prints the mesh's flaws, the springs' and bending stencils' stiffness spread, how many
 //! particles start within the collision thickness, and per step the residual at every Newton
-//! iterate and the largest stretch and compression.
-
-// A diagnostic run by hand: printing is its output.
-#![allow(clippy::print_stdout)]
+//! iterate, the gradient split into its terms with the particles carrying most of it, and the
+//! largest stretch and compression.
+//!
+//! It uses the library's public API only: the job layer resolves the garment as a bake would
+//! ([`prepare_cloth`]), and [`NewtonSolver::diagnostics`] shows the solver's working vectors.
 
 use std::collections::BTreeMap;
+use std::error::Error;
 use std::path::PathBuf;
 
-use glam::DVec3;
+use scenebake::bake::cloth::{prepare_cloth, ClothJob, ClothSource};
+use scenebake::cloth::collide::{ColliderSpec, ContactModel};
+use scenebake::cloth::material::BendRest;
+use scenebake::cloth::newton::DEFAULT_SWEEPS;
+use scenebake::cloth::system::spring_gradient;
+use scenebake::cloth::{BendingFactor, NewtonSolver, ReducedSystem, StepSolver};
+use scenebake::glam::DVec3;
+use scenebake::mesh::Mesh;
 
-use super::*;
-use crate::bake::cloth::{prepare_cloth, ClothJob, ClothSource};
-use crate::cloth::collide::ColliderSpec;
+type Res<T> = Result<T, Box<dyn Error>>;
 
+/// The knob `name` parsed, or `default` when it is unset or does not parse.
 fn env<T: std::str::FromStr>(name: &str, default: T) -> T {
     std::env::var(name)
         .ok()
@@ -35,13 +45,29 @@ fn env<T: std::str::FromStr>(name: &str, default: T) -> T {
         .unwrap_or(default)
 }
 
+/// The knob `name` parsed, `None` when it is unset; an error names it when it does not parse.
+fn knob<T: std::str::FromStr>(name: &str) -> Res<Option<T>>
+where
+    T::Err: std::fmt::Display,
+{
+    match std::env::var(name) {
+        Ok(v) => v
+            .parse()
+            .map(Some)
+            .map_err(|e| format!("{name}={v:?}: {e}").into()),
+        Err(_) => Ok(None),
+    }
+}
+
+/// Per particle (model order): on a non-manifold edge, on an edge shorter than 2 mm, on the
+/// boundary.
 struct Flags {
     non_manifold: Vec<bool>,
     sliver: Vec<bool>,
     boundary: Vec<bool>,
 }
 
-fn flags(mesh: &crate::mesh::Mesh) -> Flags {
+fn flags(mesh: &Mesh) -> Flags {
     let n = mesh.positions.len();
     let mut edges: BTreeMap<(u32, u32), usize> = BTreeMap::new();
     for t in &mesh.triangles {
@@ -72,57 +98,59 @@ fn flags(mesh: &crate::mesh::Mesh) -> Flags {
     f
 }
 
-#[test]
-#[ignore]
-fn probe() {
+fn main() -> Res<()> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("meshes/garments");
     let mesh: String = env("PROBE_MESH", "dress_draped.obj".to_string());
     let collider: String = env("PROBE_COLLIDER", "mannequin.obj".to_string());
     let steps: usize = env("PROBE_STEPS", 3);
     let cap: usize = env("PROBE_CAP", 50);
     let mut job = ClothJob::new(ClothSource::File(root.join(&mesh)), "unused.glb".into());
-    if let Ok(shape) = std::env::var("PROBE_SHAPE") {
-        job.collider = vec![shape.parse().unwrap()];
+    if let Some(shape) = knob::<String>("PROBE_SHAPE")? {
+        job.collider = vec![shape
+            .parse()
+            .map_err(|e| format!("PROBE_SHAPE={shape:?}: {e}"))?];
     } else if collider != "none" {
         job.collider = vec![ColliderSpec::mesh(root.join(&collider))];
     }
-    if let Ok(b) = std::env::var("PROBE_BEND") {
-        job.bend = Some(b.parse().unwrap());
+    if let Some(b) = knob("PROBE_BEND")? {
+        job.bend = Some(b);
     }
-    if let Ok(t) = std::env::var("PROBE_THICKNESS") {
-        job.thickness = Some(t.parse().unwrap());
+    if let Some(t) = knob("PROBE_THICKNESS")? {
+        job.thickness = Some(t);
     }
-    if let Ok(p) = std::env::var("PROBE_PIN") {
-        job.pin = vec![p.parse().unwrap()];
+    if let Some(p) = knob::<String>("PROBE_PIN")? {
+        job.pin = vec![p.parse().map_err(|e| format!("PROBE_PIN={p:?}: {e}"))?];
     }
-    if let Ok(t) = std::env::var("PROBE_TRANSLATE") {
-        job.translate = Some(crate::spec::vec3_value(&t).unwrap());
+    if let Some(t) = knob::<String>("PROBE_TRANSLATE")? {
+        job.translate = Some(
+            scenebake::spec::vec3_value(&t).map_err(|e| format!("PROBE_TRANSLATE={t:?}: {e}"))?,
+        );
     }
-    if let Ok(n) = std::env::var("PROBE_SUBSTEPS") {
-        job.substeps = n.parse().unwrap();
+    if let Some(n) = knob("PROBE_SUBSTEPS")? {
+        job.substeps = n;
     }
-    if let Ok(r) = std::env::var("PROBE_BEND_REST") {
-        use crate::cloth::material::BendRest;
+    if let Some(r) = knob::<String>("PROBE_BEND_REST")? {
         job.bend_rest = Some(match r.as_str() {
             "flat" => BendRest::Flat,
             "mesh" => BendRest::Mesh,
-            _ => panic!("PROBE_BEND_REST is `flat` or `mesh`, not {r:?}"),
+            _ => return Err(format!("PROBE_BEND_REST is `flat` or `mesh`, not {r:?}").into()),
         });
     }
-    if let Ok(c) = std::env::var("PROBE_CONTACT") {
-        use crate::cloth::collide::ContactModel;
+    if let Some(c) = knob::<String>("PROBE_CONTACT")? {
         job.contact = Some(match c.as_str() {
             "constraint" => ContactModel::Constraint,
             "barrier" => ContactModel::Barrier,
-            _ => panic!("PROBE_CONTACT is `constraint` or `barrier`, not {c:?}"),
+            _ => {
+                return Err(format!("PROBE_CONTACT is `constraint` or `barrier`, not {c:?}").into())
+            }
         });
     }
-    if let Ok(j) = std::env::var("PROBE_JAM") {
-        job.jam_strain = Some(j.parse().unwrap());
+    if let Some(j) = knob("PROBE_JAM")? {
+        job.jam_strain = Some(j);
     }
     job.frames = Some(steps);
     job.friction = env("PROBE_FRICTION", job.friction);
-    let prepared = prepare_cloth(&job).unwrap();
+    let prepared = prepare_cloth(&job)?;
     let model = &prepared.model;
     let params = &prepared.params;
     let fl = flags(&model.mesh);
@@ -136,9 +164,8 @@ fn probe() {
     let sys = ReducedSystem::with_coupling(
         model,
         params.step_params(),
-        super::BendingFactor::default().coupling(),
-    )
-    .unwrap();
+        BendingFactor::default().coupling(),
+    )?;
     let colliders = (!params.colliders.is_empty()).then(|| params.colliders.clone());
     println!(
         "{} particles, {} springs, {} bends, thickness {:?} m, h {} s, force scale {:.3e} N",
@@ -205,18 +232,21 @@ fn probe() {
             depths.last().copied().unwrap_or(0.0)
         );
     }
-    let mut solver = NewtonSolver::new(sys, params.tolerance, cap)
-        .unwrap()
+    let mut solver = NewtonSolver::new(sys, params.tolerance, cap)?
         .single_precision(std::env::var("PROBE_DOUBLE").is_err())
-        .with_sweeps(env("PROBE_SWEEPS", crate::cloth::newton::DEFAULT_SWEEPS))
+        .with_sweeps(env("PROBE_SWEEPS", DEFAULT_SWEEPS))
         .with_colliders(colliders);
     solver.record_history(true);
     let mut v = vec![DVec3::ZERO; x.len()];
     for step in 1..=steps {
         let t0 = std::time::Instant::now();
-        let stats = solver.step(&mut x, &mut v).unwrap();
+        let stats = solver.step(&mut x, &mut v)?;
         let joined = |v: Option<&[f64]>, f: fn(&f64) -> String| {
-            v.unwrap().iter().map(f).collect::<Vec<_>>().join(" ")
+            v.unwrap_or_default()
+                .iter()
+                .map(f)
+                .collect::<Vec<_>>()
+                .join(" ")
         };
         println!(
             "step {step}: {stats:?} {:.2} s, directions (single, double) so far {:?}\n  ρ: {}\n  α: {}",
@@ -227,7 +257,8 @@ fn probe() {
         );
         report_terms(&solver, &x, &fl);
         // Strain.
-        let sp = &solver.sys.springs;
+        let sys = solver.system();
+        let sp = &sys.springs;
         let (mut hi, mut lo) = (0.0f64, 0.0f64);
         let (mut ihi, mut ilo) = (0, 0);
         let mut past = 0;
@@ -245,7 +276,7 @@ fn probe() {
                 ilo = s;
             }
         }
-        let pof = |i: u32| solver.sys.particle_of[i as usize];
+        let pof = |i: u32| sys.particle_of[i as usize];
         println!(
             "step {step}: strain max {:+.1} % (spring {}-{}, rest {:.2} mm), min {:+.1} % (spring {}-{}, rest {:.2} mm), {past} edges past 10 %",
             100.0 * hi,
@@ -258,31 +289,27 @@ fn probe() {
             1e3 * sp.rest[ilo]
         );
     }
+    Ok(())
 }
 
 /// The gradient's terms at the end of a step: inertia, springs, bending, and what the colliders
 /// hold (∇g less the free gradient), as RMS per particle relative to its weight, and the worst
 /// particles with their flags (N non-manifold, S sliver, B boundary, H held).
 fn report_terms(s: &NewtonSolver, x: &[DVec3], fl: &Flags) {
-    let sys = &s.sys;
+    let sys = s.system();
+    let d = s.diagnostics();
     let n = x.len();
     let h = sys.params.time_step;
     let w = sys.inertia_scale() / (h * h);
     let mut t = vec![[DVec3::ZERO; 4]; n];
     for i in 0..n {
-        t[i][0] = (x[i] - s.y[i]) * (w * sys.mass[i]);
-        t[i][3] = s.grad[i] - s.free_grad[i];
+        t[i][0] = (x[i] - d.y[i]) * (w * sys.mass[i]);
+        t[i][3] = d.grad[i] - d.free_grad[i];
     }
     let sp = &sys.springs;
     for k in 0..sp.a.len() {
         let (a, b) = (sp.a[k] as usize, sp.b[k] as usize);
-        let f = crate::cloth::system::spring_gradient(
-            x[a] - x[b],
-            sp.rest[k],
-            sp.k[k],
-            sp.kc[k],
-            sys.jam_strain,
-        );
+        let f = spring_gradient(x[a] - x[b], sp.rest[k], sp.k[k], sp.kc[k], sys.jam_strain);
         t[a][1] += f;
         t[b][1] -= f;
     }
@@ -302,20 +329,20 @@ fn report_terms(s: &NewtonSolver, x: &[DVec3], fl: &Flags) {
         .collect();
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| {
-        s.free_grad[b]
+        d.free_grad[b]
             .length_squared()
-            .total_cmp(&s.free_grad[a].length_squared())
+            .total_cmp(&d.free_grad[a].length_squared())
     });
-    let total: f64 = s.free_grad.iter().map(|g| g.length_squared()).sum();
+    let total: f64 = d.free_grad.iter().map(|g| g.length_squared()).sum();
     let mut share = [0.0; 4];
     for i in 0..n {
         let p = sys.particle_of[i] as usize;
-        let g2 = s.free_grad[i].length_squared() / total;
+        let g2 = d.free_grad[i].length_squared() / total;
         for (k, f) in [
             fl.non_manifold[p],
             fl.sliver[p],
             fl.boundary[p],
-            s.held[i].is_some(),
+            d.held[i].is_some(),
         ]
         .into_iter()
         .enumerate()
@@ -325,7 +352,7 @@ fn report_terms(s: &NewtonSolver, x: &[DVec3], fl: &Flags) {
             }
         }
     }
-    let top: Vec<String> = order[..5]
+    let top: Vec<String> = order[..5.min(n)]
         .iter()
         .map(|&i| {
             let p = sys.particle_of[i] as usize;
@@ -335,8 +362,8 @@ fn report_terms(s: &NewtonSolver, x: &[DVec3], fl: &Flags) {
                 if fl.non_manifold[p] { "N" } else { "" },
                 if fl.sliver[p] { "S" } else { "" },
                 if fl.boundary[p] { "B" } else { "" },
-                if s.held[i].is_some() { "H" } else { "" },
-                s.free_grad[i].length() / wt,
+                if d.held[i].is_some() { "H" } else { "" },
+                d.free_grad[i].length() / wt,
                 t[i][0].length() / wt,
                 t[i][1].length() / wt,
                 t[i][2].length() / wt,
@@ -344,16 +371,16 @@ fn report_terms(s: &NewtonSolver, x: &[DVec3], fl: &Flags) {
             )
         })
         .collect();
-    if let Some(c) = &s.contact {
-        for &i in &order[..3] {
-            let q = c.colliders().shapes[0].contact(x[i], s.x0[i], 1.0);
+    if let Some(c) = d.colliders {
+        for &i in &order[..3.min(n)] {
+            let q = c.shapes[0].contact(x[i], d.x0[i], 1.0);
             println!(
                 "    particle {}: x {:.4} (moved {:.2e} m this step), collider distance {:?}, held {:?}",
                 sys.particle_of[i],
                 x[i],
-                x[i].distance(s.x0[i]),
+                x[i].distance(d.x0[i]),
                 q.map(|q| (q.distance, q.normal)),
-                s.held[i]
+                d.held[i]
             );
         }
     }
