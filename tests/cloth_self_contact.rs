@@ -9,7 +9,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use common::cli::scenebake;
-use common::crossing::{brute_self, cloth_triangles, weld};
+use common::crossing::{brute_between, brute_self, cloth_triangles, weld};
 use common::morph::load_morph;
 
 /// A 1 m square curtain of `n`×`n` cells standing on its lower edge 2 cm above the ground
@@ -144,4 +144,116 @@ fn the_draped_dress_with_self_contact_converges_and_adds_no_crossing() {
         .collect();
     assert!(file[0] > 100, "the input crosses itself: {file:?}");
     assert!(file[1..].iter().all(|&n| n <= file[0]), "{file:?}");
+}
+
+/// A coarse sheet (20 cm cells) dropped across a thin ridge (a 2 cm prism along z, between two
+/// columns of particles). Kept off by its particles alone, the sheet lets the ridge's edge pass
+/// between them, through its triangles; with self-contact the ridge's edges and vertices are
+/// pairs too, and no written frame crosses it (the exact count of the file against the ridge).
+fn drop_on_ridge(self_contact: &str) -> Vec<usize> {
+    const FRAMES: usize = 20;
+    let dir = tempfile::tempdir().unwrap();
+    let n = 5;
+    let sheet = dir.path().join("sheet.obj");
+    let mut f = std::io::BufWriter::new(std::fs::File::create(&sheet).unwrap());
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+            writeln!(f, "v {:.6} 0.25 {:.6}", u - 0.5, v - 0.5).unwrap();
+        }
+    }
+    let id = |i: usize, j: usize| j * (n + 1) + i + 1;
+    for j in 0..n {
+        for i in 0..n {
+            writeln!(f, "f {} {} {}", id(i, j), id(i + 1, j + 1), id(i + 1, j)).unwrap();
+            writeln!(f, "f {} {} {}", id(i, j), id(i, j + 1), id(i + 1, j + 1)).unwrap();
+        }
+    }
+    drop(f);
+    // The ridge: a closed triangular prism along z, its apex at y = 0.2 and x = 0, midway
+    // between the particle columns x = -0.1 and x = 0.1.
+    let ridge = dir.path().join("ridge.obj");
+    let (x, w, top, z) = (0.0, 0.01, 0.2, 0.7);
+    let corners = [
+        [x - w, 0.0, -z],
+        [x + w, 0.0, -z],
+        [x, top, -z],
+        [x - w, 0.0, z],
+        [x + w, 0.0, z],
+        [x, top, z],
+    ];
+    let faces = [
+        [1, 3, 2],
+        [4, 5, 6],
+        [1, 2, 5],
+        [1, 5, 4],
+        [2, 3, 6],
+        [2, 6, 5],
+        [3, 1, 4],
+        [3, 4, 6],
+    ];
+    let mut f = std::io::BufWriter::new(std::fs::File::create(&ridge).unwrap());
+    for c in corners {
+        writeln!(f, "v {} {} {}", c[0], c[1], c[2]).unwrap();
+    }
+    for t in faces {
+        writeln!(f, "f {} {} {}", t[0], t[1], t[2]).unwrap();
+    }
+    drop(f);
+    let out = dir.path().join("sheet.glb");
+    let report = dir.path().join("sheet.json");
+    let (code, err) = scenebake([
+        "cloth",
+        sheet.to_str().unwrap(),
+        "--collider",
+        &format!("mesh:{}", ridge.display()),
+        "--collider",
+        "plane:0,1,0,0",
+        "--frames",
+        &FRAMES.to_string(),
+        "--self-contact",
+        self_contact,
+        "-o",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let r = common::read_json(&report);
+    let fps = r["fps"].as_f64().unwrap() as f32;
+    let morph = load_morph(&out);
+    let tris = weld(&morph.base, &cloth_triangles(&out));
+    let body: Vec<scenebake::glam::Vec3> = corners
+        .iter()
+        .map(|c| scenebake::glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+        .collect();
+    let body_tris: Vec<[u32; 3]> = faces.iter().map(|t| t.map(|v| v - 1)).collect();
+    let file: Vec<usize> = (0..=FRAMES)
+        .map(|k| {
+            brute_between(
+                &morph.positions_at(k as f32 / fps),
+                &tris,
+                &body,
+                &body_tris,
+            )
+        })
+        .collect();
+    assert_eq!(
+        file,
+        common::counts_of(&r["quality"]["body_crossings"]),
+        "the report counts what the file holds"
+    );
+    file
+}
+
+#[test]
+fn with_self_contact_a_ridge_between_particles_does_not_cut_through_the_sheet() {
+    let file = drop_on_ridge("on");
+    assert!(file.iter().all(|&n| n == 0), "{file:?}");
+}
+
+#[test]
+fn kept_off_by_its_particles_alone_the_sheet_falls_through_the_ridge() {
+    let file = drop_on_ridge("off");
+    assert!(file.iter().any(|&n| n > 0), "{file:?}");
 }

@@ -177,9 +177,9 @@ pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn St
         SolverKind::Newton => {
             let sys =
                 ReducedSystem::with_coupling(model, step, BendingFactor::default().coupling())?;
-            let self_contact = params
-                .self_contact
-                .map(|layer| self_contact::SelfContact::new(model, &sys, layer));
+            let self_contact = params.self_contact.map(|layer| {
+                self_contact::SelfContact::new(model, &sys, layer).with_obstacles(&params.colliders)
+            });
             Box::new(
                 NewtonSolver::new(sys, params.tolerance, params.max_newton)?
                     .with_colliders(colliders)

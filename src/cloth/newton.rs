@@ -1498,6 +1498,13 @@ impl StepSolver for NewtonSolver {
         if let Some(s) = &mut self.self_contact {
             s.move_pins(pins);
         }
+        if let Some(s) = &mut self.self_contact {
+            for (j, shape) in &shapes {
+                if let Collider::Moving { after, .. } | Collider::Mesh(after) = shape {
+                    s.move_obstacle(*j, after.positions());
+                }
+            }
+        }
         if let Some(c) = &mut self.contact {
             for (j, shape) in shapes {
                 c.set_shape(j, shape);

@@ -24,6 +24,12 @@
 //! touches: a bake never adds a crossing but does not untangle one. A step whose start a
 //! collider pushed out of itself is taken as it is ([`SelfContact::accept`]).
 //!
+//! **Colliders' edges and corners.** The mesh colliders join the pairs
+//! ([`SelfContact::with_obstacles`]): their vertices against the cloth's triangles, their edges
+//! against the cloth's edges (their triangles against the cloth's vertices repeat the colliders'
+//! own barrier). Their vertices are fixed within a step, as pins are, so a body's sharp edge
+//! cannot pass between two particles through the cloth's triangles.
+//!
 //! **Broad phase.** A uniform grid over the pairs' swept boxes from one iterate to the farthest
 //! point a search may try, each box grown by half the band's top, so every pair that can come
 //! within its band on the way is a candidate ([`SelfContact::prepare_path`]). Triangles and
@@ -42,6 +48,7 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use super::collide::contact::{barrier_shape, barrier_strength};
+use super::collide::{Collider, Colliders};
 use super::model::ClothModel;
 use super::proximity::{point_triangle, segment_segment, Separation};
 use super::system::{ReducedSystem, PINNED};
@@ -128,6 +135,9 @@ pub struct SelfContact {
     stamp: Vec<u32>,
     /// The end of a cut path.
     cut_end: Vec<DVec3>,
+    /// The mesh colliders whose vertices, edges and triangles join the pairs
+    /// ([`SelfContact::with_obstacles`]): collider index, first vertex, vertex count.
+    obstacles: Vec<(usize, u32, u32)>,
 }
 
 /// A pair's key: a vertex and a triangle, or two edges (the lower index first).
@@ -263,11 +273,60 @@ impl SelfContact {
             grid: HashGrid::default(),
             stamp: Vec::new(),
             cut_end: Vec::new(),
+            obstacles: Vec::new(),
+        }
+    }
+
+    /// Adds the mesh colliders of `colliders` (a body, a table) to the pairs: their vertices
+    /// against the cloth's triangles, their triangles against the cloth's vertices and their
+    /// edges against the cloth's edges, so that a collider's corners and edges are kept off the
+    /// cloth as its faces are, and no step passes the cloth through them. A collider's vertices
+    /// are fixed, as pins are ([`SelfContact::move_obstacle`] moves them between steps);
+    /// collider–collider pairs are never formed.
+    pub fn with_obstacles(mut self, colliders: &Colliders) -> Self {
+        let mean = if self.strength.is_empty() {
+            0.0
+        } else {
+            self.strength.iter().sum::<f64>() / self.strength.len() as f64
+        };
+        for (j, shape) in colliders.shapes.iter().enumerate() {
+            let (Collider::Mesh(m) | Collider::Moving { after: m, .. }) = shape else {
+                continue;
+            };
+            let first = self.slot.len() as u32;
+            let count = m.positions().len() as u32;
+            self.slot
+                .extend(std::iter::repeat_n(PINNED, count as usize));
+            self.fixed.extend_from_slice(m.positions());
+            self.strength
+                .extend(std::iter::repeat_n(mean, count as usize));
+            self.ends
+                .resize(self.slot.len(), (DVec3::ZERO, DVec3::ZERO));
+            let shift = |t: &[u32; 3]| t.map(|v| v + first);
+            self.triangles.extend(m.triangles().iter().map(shift));
+            self.edges.extend(
+                crate::mesh::edges(m.triangles())
+                    .iter()
+                    .map(|e| e.map(|v| v + first)),
+            );
+            self.obstacles.push((j, first, count));
+        }
+        self
+    }
+
+    /// Moves the vertices of collider `j` (one of [`SelfContact::with_obstacles`]; others are
+    /// ignored) to `positions`, in its vertex order.
+    pub fn move_obstacle(&mut self, j: usize, positions: &[DVec3]) {
+        if let Some(&(_, first, count)) = self.obstacles.iter().find(|o| o.0 == j) {
+            debug_assert_eq!(positions.len(), count as usize);
+            let first = first as usize;
+            self.fixed[first..first + count as usize].copy_from_slice(positions);
         }
     }
 
     /// Moves the pinned particles to their entries of `all` (model order, m).
     pub fn move_pins(&mut self, all: &[DVec3]) {
+        // (The zip stops at the cloth's particles: the obstacles' vertices follow them.)
         for (f, (s, a)) in self.fixed.iter_mut().zip(self.slot.iter().zip(all)) {
             if *s == PINNED {
                 *f = *a;
