@@ -131,6 +131,8 @@ pub struct SelfContact {
     /// Scratch: per model particle, its two path ends; binned primitives; visit stamps.
     ends: Vec<(DVec3, DVec3)>,
     bins: Vec<(u64, u32)>,
+    /// Scratch: the swept, grown box of every triangle, then of every edge.
+    boxes: Vec<Aabb>,
     grid: HashGrid,
     stamp: Vec<u32>,
     /// The end of a cut path.
@@ -270,6 +272,7 @@ impl SelfContact {
             active: Vec::new(),
             ends: vec![(DVec3::ZERO, DVec3::ZERO); n],
             bins: Vec::new(),
+            boxes: Vec::new(),
             grid: HashGrid::default(),
             stamp: Vec::new(),
             cut_end: Vec::new(),
@@ -521,16 +524,18 @@ impl SelfContact {
         }
         let grow = 0.75 * self.layer;
         let ends = &self.ends;
-        let tri_box = |t: &[u32; 3]| Aabb::of(&t.map(|v| ends[v as usize]), grow);
-        let edge_box = |e: &[u32; 2]| Aabb::of(&e.map(|v| ends[v as usize]), grow);
+        let mut boxes = std::mem::take(&mut self.boxes);
         let mut pairs = std::mem::take(&mut self.pairs);
         pairs.clear();
         let mut bins = std::mem::take(&mut self.bins);
         let mut stamp = std::mem::take(&mut self.stamp);
         // Vertex against triangle.
         bins.clear();
+        boxes.clear();
         for (t, tri) in self.triangles.iter().enumerate() {
-            bins.extend(cells(&tri_box(tri), cell).map(|k| (k, t as u32)));
+            let b = Aabb::of(&tri.map(|v| ends[v as usize]), grow);
+            bins.extend(cells(&b, cell).map(|k| (k, t as u32)));
+            boxes.push(b);
         }
         let mut grid = std::mem::take(&mut self.grid);
         grid.build(&bins);
@@ -547,7 +552,7 @@ impl SelfContact {
                     }
                     stamp[t as usize] = now;
                     let tri = self.triangles[t as usize];
-                    if tri.contains(&v) || !tri_box(&tri).overlaps(&vb) {
+                    if tri.contains(&v) || !boxes[t as usize].overlaps(&vb) {
                         continue;
                     }
                     // Pinned to pinned pairs never move: nothing to keep apart.
@@ -562,12 +567,15 @@ impl SelfContact {
         }
         // Edge against edge.
         bins.clear();
+        boxes.clear();
         for (e, edge) in self.edges.iter().enumerate() {
-            bins.extend(cells(&edge_box(edge), cell).map(|k| (k, e as u32)));
+            let b = Aabb::of(&edge.map(|v| ends[v as usize]), grow);
+            bins.extend(cells(&b, cell).map(|k| (k, e as u32)));
+            boxes.push(b);
         }
         grid.build(&bins);
         for (e, edge) in self.edges.iter().enumerate() {
-            let eb = edge_box(edge);
+            let eb = boxes[e];
             now += 1;
             for k in cells(&eb, cell) {
                 for &f in grid.bucket(k) {
@@ -578,7 +586,7 @@ impl SelfContact {
                     let other = self.edges[f as usize];
                     if other.contains(&edge[0])
                         || other.contains(&edge[1])
-                        || !edge_box(&other).overlaps(&eb)
+                        || !boxes[f as usize].overlaps(&eb)
                     {
                         continue;
                     }
@@ -592,6 +600,7 @@ impl SelfContact {
         }
         self.pairs = pairs;
         self.bins = bins;
+        self.boxes = boxes;
         self.grid = grid;
         self.stamp = stamp;
     }
