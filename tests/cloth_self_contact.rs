@@ -83,8 +83,11 @@ fn a_curtain_dropped_onto_the_floor_never_passes_through_itself() {
         file.iter().all(|&n| n == 0),
         "crossing pairs per frame: {file:?}"
     );
-    // It did fold onto itself: the 1 m curtain lies in a pile lower than a tenth of its height.
-    assert!(top < 0.1, "highest point {top} m at the last frame");
+    // It did fold onto itself: the 1 m curtain lies in a pile under 15 % of its height, its
+    // layers in contact (hundreds of pairs inside their bands).
+    assert!(top < 0.15, "highest point {top} m at the last frame");
+    let pairs = common::counts_of(&r["self_contact"]["pairs"]);
+    assert!(pairs.iter().max().is_some_and(|&n| n > 100), "{pairs:?}");
     let unconverged = r["unconverged_frames"].as_array().unwrap();
     assert!(unconverged.is_empty(), "{unconverged:?}");
 }
