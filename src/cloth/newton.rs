@@ -633,14 +633,19 @@ impl NewtonSolver {
     }
 
     /// Runs on up to `threads` threads (default 1). With two or more, a large model's
-    /// Gauss–Seidel sweeps move its two parts at once ([`Smoother`]), and its preconditioner's
-    /// two halves are factored and solved at once ([`SplitCholesky`]): the same iterates as on
-    /// one thread, to the bit, sooner.
+    /// Gauss–Seidel sweeps move its two parts at once ([`Smoother`]), its preconditioner's
+    /// two halves are factored and solved at once ([`SplitCholesky`]), and self-contact's
+    /// phases split ([`SelfContact::with_threads`]): the same iterates as on one thread, to the
+    /// bit, sooner. (Call it after [`NewtonSolver::with_self_contact`].)
     pub fn with_threads(mut self, threads: usize) -> Self {
         self.threads = threads.max(1);
         if let Some(split) = &mut self.split_factor {
             split.use_helper(self.threads >= 2);
         }
+        self.self_contact = self
+            .self_contact
+            .take()
+            .map(|s| s.with_threads(self.threads));
         self
     }
 

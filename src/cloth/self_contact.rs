@@ -77,6 +77,10 @@ const MAX_PATH_CELLS: f64 = 64.0;
 /// Cells a path may sweep a primitive across: past it, the path's grid has larger cells.
 const SWEPT_CELLS: f64 = 4.0;
 
+/// Vertices plus edges from which the broad and narrow phases split over two threads (a
+/// thread's start costs tens of microseconds; a smaller cloth's phases take about that).
+const PARALLEL_MIN: usize = 4096;
+
 /// A candidate pair of primitives.
 #[derive(Debug, Clone, Copy)]
 struct Pair {
@@ -137,6 +141,11 @@ pub struct SelfContact {
     stamp: Vec<u32>,
     /// The end of a cut path.
     cut_end: Vec<DVec3>,
+    /// Threads the broad and narrow phases may use (see [`SelfContact::with_threads`]).
+    threads: usize,
+    /// Scratch of a second thread: its visit stamps and its pairs.
+    stamp2: Vec<u32>,
+    pairs2: Vec<Pair>,
     /// The mesh colliders whose vertices, edges and triangles join the pairs
     /// ([`SelfContact::with_obstacles`]): collider index, first vertex, vertex count.
     obstacles: Vec<(usize, u32, u32)>,
@@ -277,7 +286,24 @@ impl SelfContact {
             stamp: Vec::new(),
             cut_end: Vec::new(),
             obstacles: Vec::new(),
+            threads: 1,
+            stamp2: Vec::new(),
+            pairs2: Vec::new(),
         }
+    }
+
+    /// Runs the broad and narrow phases of a large cloth (at least [`PARALLEL_MIN`] primitives)
+    /// on two threads when `threads` ≥ 2: each takes half of the vertices, of the edges and of
+    /// the candidates, in order, so the pairs, their order and every time of impact are those
+    /// of one thread.
+    pub fn with_threads(mut self, threads: usize) -> Self {
+        self.threads = threads.max(1);
+        self
+    }
+
+    /// Whether the phases run on two threads now.
+    fn parallel(&self) -> bool {
+        self.threads >= 2 && self.slot.len() + self.edges.len() >= PARALLEL_MIN
     }
 
     /// Adds the mesh colliders of `colliders` (a body, a table) to the pairs: their vertices
@@ -459,18 +485,35 @@ impl SelfContact {
     fn prepare_segment(&mut self, a: &[DVec3], b: &[DVec3], cell: f64) -> f64 {
         self.find_pairs(a, b, cell);
         self.ready = true;
-        let mut toi: f64 = 1.0;
         let mut pairs = std::mem::take(&mut self.pairs);
         // A pair whose distance cannot fall into its band on the path is dropped: a pair's
-        // distance changes no faster than its relative motion.
-        pairs.retain(|pair| {
-            if pair.layer == 0.0 {
-                return true;
-            }
-            let (near, t) = self.pair_toi(pair, a, b, toi);
-            toi = toi.min(t);
-            near
-        });
+        // distance changes no faster than its relative motion. (Whether a pair is near does
+        // not depend on the limit a search is given, and a time of impact found below it does
+        // not either: the halves' minimum is the whole's.)
+        let keep = |pairs: &mut Vec<Pair>| {
+            let mut toi: f64 = 1.0;
+            pairs.retain(|pair| {
+                if pair.layer == 0.0 {
+                    return true;
+                }
+                let (near, t) = self.pair_toi(pair, a, b, toi);
+                toi = toi.min(t);
+                near
+            });
+            toi
+        };
+        let toi = if self.parallel() && pairs.len() >= 2 {
+            let mut right = pairs.split_off(pairs.len() / 2);
+            let (l, r) = std::thread::scope(|scope| {
+                let helper = scope.spawn(|| keep(&mut right));
+                let l = keep(&mut pairs);
+                (l, helper.join().expect("the narrow phase's thread"))
+            });
+            pairs.append(&mut right);
+            l.min(r)
+        } else {
+            keep(&mut pairs)
+        };
         self.pairs = pairs;
         toi
     }
@@ -539,11 +582,89 @@ impl SelfContact {
         }
         let mut grid = std::mem::take(&mut self.grid);
         grid.build(&bins);
+        let mut stamp2 = std::mem::take(&mut self.stamp2);
+        let mut pairs2 = std::mem::take(&mut self.pairs2);
+        let parallel = self.parallel();
+        let vertices = self.slot.len() as u32;
+        if parallel {
+            let half = vertices / 2;
+            std::thread::scope(|scope| {
+                let helper = scope.spawn(|| {
+                    self.vertex_pairs(
+                        half..vertices,
+                        &grid,
+                        &boxes,
+                        &mut stamp2,
+                        &mut pairs2,
+                        grow,
+                        cell,
+                    )
+                });
+                self.vertex_pairs(0..half, &grid, &boxes, &mut stamp, &mut pairs, grow, cell);
+                helper.join().expect("the broad phase's thread");
+            });
+            pairs.append(&mut pairs2);
+        } else {
+            self.vertex_pairs(
+                0..vertices,
+                &grid,
+                &boxes,
+                &mut stamp,
+                &mut pairs,
+                grow,
+                cell,
+            );
+        }
+        // Edge against edge.
+        bins.clear();
+        boxes.clear();
+        for (e, edge) in self.edges.iter().enumerate() {
+            let b = Aabb::of(&edge.map(|v| ends[v as usize]), grow);
+            bins.extend(cells(&b, cell).map(|k| (k, e as u32)));
+            boxes.push(b);
+        }
+        grid.build(&bins);
+        let count = self.edges.len() as u32;
+        if parallel {
+            let half = count / 2;
+            std::thread::scope(|scope| {
+                let helper = scope.spawn(|| {
+                    self.edge_pairs(half..count, &grid, &boxes, &mut stamp2, &mut pairs2, cell)
+                });
+                self.edge_pairs(0..half, &grid, &boxes, &mut stamp, &mut pairs, cell);
+                helper.join().expect("the broad phase's thread");
+            });
+            pairs.append(&mut pairs2);
+        } else {
+            self.edge_pairs(0..count, &grid, &boxes, &mut stamp, &mut pairs, cell);
+        }
+        self.pairs = pairs;
+        self.bins = bins;
+        self.boxes = boxes;
+        self.grid = grid;
+        self.stamp = stamp;
+        self.stamp2 = stamp2;
+        self.pairs2 = pairs2;
+    }
+
+    /// Appends to `out` the vertex–triangle candidates of vertices `range`, the triangles binned
+    /// in `grid` with their `boxes`; `stamp` is scratch.
+    #[allow(clippy::too_many_arguments)]
+    fn vertex_pairs(
+        &self,
+        range: std::ops::Range<u32>,
+        grid: &HashGrid,
+        boxes: &[Aabb],
+        stamp: &mut Vec<u32>,
+        out: &mut Vec<Pair>,
+        grow: f64,
+        cell: f64,
+    ) {
         stamp.clear();
-        stamp.resize(self.triangles.len().max(self.edges.len()), 0);
+        stamp.resize(self.triangles.len(), 0);
         let mut now = 0u32;
-        for v in 0..self.slot.len() as u32 {
-            let vb = Aabb::of(&[ends[v as usize]], grow);
+        for v in range {
+            let vb = Aabb::of(&[self.ends[v as usize]], grow);
             now += 1;
             for k in cells(&vb, cell) {
                 for &t in grid.bucket(k) {
@@ -561,20 +682,28 @@ impl SelfContact {
                     {
                         continue;
                     }
-                    pairs.push(self.pair(false, v, t, [v, tri[0], tri[1], tri[2]]));
+                    out.push(self.pair(false, v, t, [v, tri[0], tri[1], tri[2]]));
                 }
             }
         }
-        // Edge against edge.
-        bins.clear();
-        boxes.clear();
-        for (e, edge) in self.edges.iter().enumerate() {
-            let b = Aabb::of(&edge.map(|v| ends[v as usize]), grow);
-            bins.extend(cells(&b, cell).map(|k| (k, e as u32)));
-            boxes.push(b);
-        }
-        grid.build(&bins);
-        for (e, edge) in self.edges.iter().enumerate() {
+    }
+
+    /// Appends to `out` the edge–edge candidates of edges `range` (each against the edges after
+    /// it), the edges binned in `grid` with their `boxes`; `stamp` is scratch.
+    fn edge_pairs(
+        &self,
+        range: std::ops::Range<u32>,
+        grid: &HashGrid,
+        boxes: &[Aabb],
+        stamp: &mut Vec<u32>,
+        out: &mut Vec<Pair>,
+        cell: f64,
+    ) {
+        stamp.clear();
+        stamp.resize(self.edges.len(), 0);
+        let mut now = 0u32;
+        for e in range {
+            let (e, edge) = (e as usize, self.edges[e as usize]);
             let eb = boxes[e];
             now += 1;
             for k in cells(&eb, cell) {
@@ -594,15 +723,10 @@ impl SelfContact {
                     if v.iter().all(|&u| self.slot[u as usize] == PINNED) {
                         continue;
                     }
-                    pairs.push(self.pair(true, e as u32, f, v));
+                    out.push(self.pair(true, e as u32, f, v));
                 }
             }
         }
-        self.pairs = pairs;
-        self.bins = bins;
-        self.boxes = boxes;
-        self.grid = grid;
-        self.stamp = stamp;
     }
 
     fn pair(&self, edges: bool, a: u32, b: u32, v: [u32; 4]) -> Pair {
