@@ -30,10 +30,8 @@ fn main() {
         std::env::temp_dir().join(format!("scenebake-bench-character-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let pin: PinSpec = "box:-1,0.69,0.235,1,0.71,0.245".parse().unwrap();
-    let sweeps = std::env::var("SWEEPS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(scenebake::cloth::newton::DEFAULT_SWEEPS);
+    // SWEEPS=N overrides the default (10 without self-contact).
+    let sweeps = std::env::var("SWEEPS").ok().and_then(|s| s.parse().ok());
     let on_fox = ClothJob {
         sweeps,
         input: Some(path("meshes/garments/fox_cape.obj")),

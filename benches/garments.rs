@@ -157,7 +157,7 @@ fn main() {
         }
         let mut job = case.job.clone();
         if let Some(sweeps) = sweeps {
-            job.sweeps = sweeps;
+            job.sweeps = Some(sweeps);
         }
         job.threads = threads.or(job.threads);
         if job.stiffness.is_none() {
