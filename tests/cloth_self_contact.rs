@@ -36,30 +36,45 @@ fn curtain(dir: &Path, n: usize) -> PathBuf {
     path
 }
 
+/// Bakes `input` with the options `extra` to `NAME.glb` in `dir` (`NAME` the input's stem plus
+/// `tag`) with its report; returns the glTF's path and the report.
+fn bake(dir: &Path, input: &Path, tag: &str, extra: &[&str]) -> (PathBuf, serde_json::Value) {
+    let stem = input.file_stem().unwrap().to_string_lossy();
+    let out = dir.join(format!("{stem}{tag}.glb"));
+    let report = dir.join(format!("{stem}{tag}.json"));
+    let mut args = vec!["cloth", input.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    args.extend([
+        "-o",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    let (code, err) = scenebake(&args);
+    assert_eq!(code, 0, "{err}");
+    (out, common::read_json(&report))
+}
+
 /// Bakes the curtain's drop; returns the crossing pairs of every written frame (exact test on
 /// the file) and the report's own counts.
 fn drop_curtain(self_contact: &str) -> (Vec<usize>, Vec<usize>, f32, serde_json::Value) {
     const FRAMES: usize = 36;
     let dir = tempfile::tempdir().unwrap();
     let input = curtain(dir.path(), 24);
-    let out = dir.path().join("curtain.glb");
-    let report = dir.path().join("curtain.json");
-    let (code, err) = scenebake([
-        "cloth",
-        input.to_str().unwrap(),
-        "--collider",
-        "plane:0,1,0,0",
-        "--frames",
-        &FRAMES.to_string(),
-        "--self-contact",
-        self_contact,
-        "-o",
-        out.to_str().unwrap(),
-        "--report",
-        report.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let r = common::read_json(&report);
+    let frames = FRAMES.to_string();
+    let (out, r) = bake(
+        dir.path(),
+        &input,
+        "",
+        &[
+            "--collider",
+            "plane:0,1,0,0",
+            "--frames",
+            &frames,
+            "--self-contact",
+            self_contact,
+        ],
+    );
     let fps = r["fps"].as_f64().unwrap() as f32;
     let morph = load_morph(&out);
     let tris = weld(&morph.base, &cloth_triangles(&out));
@@ -114,29 +129,17 @@ fn without_self_contact_the_same_curtain_passes_through_itself() {
 #[test]
 fn the_draped_dress_with_self_contact_converges_and_adds_no_crossing() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("dress.glb");
-    let report = dir.path().join("dress.json");
-    let (code, err) = scenebake([
-        "cloth",
-        common::mesh_path("garments/dress_draped.obj")
-            .to_str()
-            .unwrap(),
-        "--collider",
-        &format!(
-            "mesh:{}",
-            common::mesh_path("garments/mannequin.obj").display()
-        ),
-        "--self-contact",
-        "on",
-        "--frames",
-        "2",
-        "-o",
-        out.to_str().unwrap(),
-        "--report",
-        report.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let r = common::read_json(&report);
+    let dress = common::mesh_path("garments/dress_draped.obj");
+    let body = format!(
+        "mesh:{}",
+        common::mesh_path("garments/mannequin.obj").display()
+    );
+    let (out, r) = bake(
+        dir.path(),
+        &dress,
+        "",
+        &["--collider", &body, "--self-contact", "on", "--frames", "2"],
+    );
     let unconverged = r["unconverged_frames"].as_array().unwrap();
     assert!(unconverged.is_empty(), "{unconverged:?} {}", r["residuals"]);
     let fps = r["fps"].as_f64().unwrap() as f32;
@@ -203,26 +206,22 @@ fn drop_on_ridge(self_contact: &str) -> Vec<usize> {
         writeln!(f, "f {} {} {}", t[0], t[1], t[2]).unwrap();
     }
     drop(f);
-    let out = dir.path().join("sheet.glb");
-    let report = dir.path().join("sheet.json");
-    let (code, err) = scenebake([
-        "cloth",
-        sheet.to_str().unwrap(),
-        "--collider",
-        &format!("mesh:{}", ridge.display()),
-        "--collider",
-        "plane:0,1,0,0",
-        "--frames",
-        &FRAMES.to_string(),
-        "--self-contact",
-        self_contact,
-        "-o",
-        out.to_str().unwrap(),
-        "--report",
-        report.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let r = common::read_json(&report);
+    let (collider, frames) = (format!("mesh:{}", ridge.display()), FRAMES.to_string());
+    let (out, r) = bake(
+        dir.path(),
+        &sheet,
+        "",
+        &[
+            "--collider",
+            &collider,
+            "--collider",
+            "plane:0,1,0,0",
+            "--frames",
+            &frames,
+            "--self-contact",
+            self_contact,
+        ],
+    );
     let fps = r["fps"].as_f64().unwrap() as f32;
     let morph = load_morph(&out);
     let tris = weld(&morph.base, &cloth_triangles(&out));
@@ -268,34 +267,29 @@ fn kept_off_by_its_particles_alone_the_sheet_falls_through_the_ridge() {
 fn self_contact_on_two_threads_bakes_the_same_file_as_on_one() {
     let dir = tempfile::tempdir().unwrap();
     let input = curtain(dir.path(), 40);
-    let bake = |threads: &str| {
-        let out = dir.path().join(format!("curtain{threads}.glb"));
-        let report = dir.path().join(format!("curtain{threads}.json"));
-        let (code, err) = scenebake([
-            "cloth",
-            input.to_str().unwrap(),
-            "--collider",
-            "plane:0,1,0,0",
-            "--frames",
-            "5",
-            "--self-contact",
-            "on",
-            "--threads",
+    let run = |threads: &str| {
+        let (out, r) = bake(
+            dir.path(),
+            &input,
             threads,
-            "-o",
-            out.to_str().unwrap(),
-            "--report",
-            report.to_str().unwrap(),
-        ]);
-        assert_eq!(code, 0, "{err}");
-        let r = common::read_json(&report);
+            &[
+                "--collider",
+                "plane:0,1,0,0",
+                "--frames",
+                "5",
+                "--self-contact",
+                "on",
+                "--threads",
+                threads,
+            ],
+        );
         (
             std::fs::read(&out).unwrap(),
             common::counts_of(&r["self_contact"]["pairs"]),
         )
     };
-    let (one, pairs) = bake("1");
-    let (two, _) = bake("2");
+    let (one, pairs) = run("1");
+    let (two, _) = run("2");
     assert!(pairs.iter().any(|&n| n > 0), "pairs in contact: {pairs:?}");
     assert!(one == two, "the files differ between one thread and two");
 }
