@@ -309,8 +309,7 @@ pub enum ColliderMeshProblem {
 fn advise(p: Param, v: Vocabulary<'_>) -> String {
     match p {
         Param::Substeps => format!("more {}", v(p)),
-        Param::Fps | Param::MaxNewton | Param::Iterations => format!("a higher {}", v(p)),
-        Param::Stiffness => format!("a lower {}", v(p)),
+        Param::Fps | Param::Iterations => format!("a higher {}", v(p)),
         _ => v(p),
     }
 }

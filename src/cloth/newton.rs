@@ -1502,8 +1502,6 @@ impl StepSolver for NewtonSolver {
         self.sys.move_pins(pins);
         if let Some(s) = &mut self.self_contact {
             s.move_pins(pins);
-        }
-        if let Some(s) = &mut self.self_contact {
             for (j, shape) in &shapes {
                 if let Collider::Moving { after, .. } | Collider::Mesh(after) = shape {
                     s.move_obstacle(*j, after.positions());

@@ -21,7 +21,10 @@
 //! steps) gets the same. Thinned layers grow back as their pairs move apart
 //! ([`SelfContact::end_step`]). A pair touching (d below 1 % of the layer: an input that already
 //! crosses itself, coincident vertices, a vertex in a neighbour's plane) is left out while it
-//! touches: a bake never adds a crossing but does not untangle one. A step whose start a
+//! touches, so around it the cloth can pass through itself, either way (the draped dress has
+//! 1,540 such pairs, most under 1 µm apart: its file is rounded to the micrometre where its layers
+//! lay on each other; it loses 63 of its 132 crossing pairs in its first frame, and its 6 with the
+//! body become 119). Elsewhere no step adds a crossing. A step whose start a
 //! collider pushed out of itself is taken as it is ([`SelfContact::accept`]).
 //!
 //! **Colliders' edges and corners.** The mesh colliders join the pairs

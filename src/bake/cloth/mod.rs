@@ -371,7 +371,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         // The sweeps do not see the cloth's pairs: cut where they would pass through, their
         // passes leave pairs at the bottom of their barriers, and Newton stalls there (the draped
         // dress on its mannequin: 200 iterations and ρ 1,296 at its second step with sweeps,
-        // 21 and ρ 0.04 without).
+        // 32 and ρ 0.05 without).
         sweeps: job.sweeps.unwrap_or(match job.self_contact {
             Switch::On => 0,
             Switch::Off => crate::cloth::newton::DEFAULT_SWEEPS,
