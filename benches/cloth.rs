@@ -32,8 +32,8 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::DVec3;
-use scenebake::cloth::factor::{Cholesky, Lanes4, Lanes4f};
 use scenebake::cloth::fast::GlobalFactor;
+use scenebake::cloth::linalg::{Cholesky, Lanes4, Lanes4f};
 use scenebake::cloth::model::masses_from_area;
 use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::preset::{defaults, lab_cloth};

@@ -28,9 +28,9 @@ use std::path::PathBuf;
 
 use scenebake::bake::cloth::{prepare_cloth, ClothJob, ClothSource};
 use scenebake::cloth::collide::{ColliderSpec, ContactModel};
+use scenebake::cloth::law::spring_gradient;
 use scenebake::cloth::material::BendRest;
 use scenebake::cloth::newton::DEFAULT_SWEEPS;
-use scenebake::cloth::system::spring_gradient;
 use scenebake::cloth::{BendingFactor, NewtonSolver, ReducedSystem, StepSolver};
 use scenebake::glam::DVec3;
 use scenebake::mesh::Mesh;

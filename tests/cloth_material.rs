@@ -7,10 +7,10 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use scenebake::bake::cloth::{prepare_cloth, ClothJob, ClothSource, PreparedCloth};
+use scenebake::cloth::law::{JAM_RAMP, TOE_STRAIN};
 use scenebake::cloth::material::DEFAULT_JAM_STRAIN;
 use scenebake::cloth::membrane::MembraneModel;
 use scenebake::cloth::pins::PinSpec;
-use scenebake::cloth::system::{JAM_RAMP, TOE_STRAIN};
 use scenebake::cloth::{make_solver, simulate, StepSolver};
 use scenebake::glam::DVec3;
 

@@ -23,10 +23,13 @@ use super::term::Term;
 use glam::DVec3;
 use sprs::CsMat;
 
-use super::collide::contact::{self, Hold};
+use super::collide::reaction::{self, Hold};
 use super::collide::{Collider, Colliders, SurfacePoint};
-use super::factor::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
-use super::system::{jam_ramp, spring_response, FreeBends, ReducedSystem, PINNED, TOE_STRAIN};
+#[cfg(target_arch = "x86_64")]
+use super::law::springs_avx2;
+use super::law::{spring_response, springs_scalar, JamRamps, TOE_STRAIN};
+use super::linalg::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
+use super::system::{FreeBends, ReducedSystem, PINNED};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
 use crate::param::Param;
@@ -133,7 +136,7 @@ pub struct FastSolver {
     history: Option<Vec<f64>>,
     /// Colliders, when any (see [`contact`]).
     colliders: Option<Colliders>,
-    /// The collider surface each particle rests on at `pos` (see [`contact::resting_on`]), kept
+    /// The collider surface each particle rests on at `pos` (see [`reaction::resting_on`]), kept
     /// up to date wherever `pos` changes (allocated with the colliders).
     resting: Vec<Option<SurfacePoint>>,
     /// Particles held by a collider in the global step, with how.
@@ -357,11 +360,11 @@ impl FastSolver {
             .zip(&self.x0)
             .zip(&mut self.resting)
         {
-            *resting = contact::resting_on(colliders, *x0, *x0);
+            *resting = reaction::resting_on(colliders, *x0, *x0);
             *p = if resting.is_some() {
                 Lanes4::from_vec3(*x0)
             } else {
-                *resting = contact::resting_on(colliders, y.xyz(), *x0);
+                *resting = reaction::resting_on(colliders, y.xyz(), *x0);
                 *y
             };
         }
@@ -379,7 +382,7 @@ impl FastSolver {
             if let Some(surface) = surface {
                 resting += 1;
                 let mut force = r.xyz();
-                let hold = contact::contact_reaction(colliders.friction, surface, &mut force);
+                let hold = reaction::contact_reaction(colliders.friction, surface, &mut force);
                 if hold != Hold::Free {
                     *r = Lanes4::from_vec3(force);
                     self.held.push((i as u32, hold));
@@ -396,7 +399,7 @@ impl FastSolver {
         };
         for ((p, x0), resting) in self.pos.iter_mut().zip(&self.x0).zip(&mut self.resting) {
             let mut q = p.xyz();
-            *resting = contact::push_out(colliders, &mut q, *x0);
+            *resting = reaction::push_out(colliders, &mut q, *x0);
             if q != p.xyz() {
                 *p = Lanes4::from_vec3(q);
             }
@@ -526,217 +529,6 @@ fn solve_single(
     }
     f.solve4f(delta);
     Lanes4(used.map(|s| 1.0 / s))
-}
-
-/// The free springs' toes and jamming ramps in the form the spring kernels evaluate (see
-/// [`super::system::spring_response`]). For a spring compressed by t = l − |d| (m), the
-/// integral of its smoothstep ramp, `push` = m·s²·(1 − s/2) + (a − m) with a = max(t − lo, 0),
-/// m = min(a, w) and s = m/w, so that its jammed push is h²k·push/|d|·d. For a spring stretched
-/// by e = |d| − l, the toe's deficit `toe_push` = m − m²/(2τ) with m = min(max(e, 0), τ), τ the
-/// toe, so that the toe's pull is less by h²(k − kc)·toe_push/|d|·d. A spring that never jams
-/// (kc = k) has lo = ∞ and τ = 0 and pushes nothing.
-#[derive(Debug, Clone)]
-struct JamRamps {
-    /// Rest length l, m.
-    rest: Vec<f64>,
-    /// Compression where the ramp starts, m (∞ for a spring that never jams).
-    lo: Vec<f64>,
-    /// The ramp's width w, m.
-    width: Vec<f64>,
-    /// 1/w, 1/m (0 for a spring that never jams).
-    inv: Vec<f64>,
-    /// The toe τ, m (0 for a spring that never jams).
-    toe: Vec<f64>,
-    /// 1/(2τ), 1/m (0 for a spring that never jams).
-    toe_inv: Vec<f64>,
-}
-
-impl JamRamps {
-    /// Ramps from a compression of (1 − [`super::system::JAM_RAMP`])·`jam`·l to
-    /// (1 + JAM_RAMP)·`jam`·l and toes of `toe`·l for the springs softer in compression
-    /// (kc < k).
-    fn new(rest: &[f64], k: &[f64], kc: &[f64], jam: f64, toe: f64) -> Self {
-        let n = rest.len();
-        let mut r = JamRamps {
-            rest: rest.to_vec(),
-            lo: vec![f64::INFINITY; n],
-            width: vec![0.0; n],
-            inv: vec![0.0; n],
-            toe: vec![0.0; n],
-            toe_inv: vec![0.0; n],
-        };
-        for i in 0..n {
-            if kc[i] < k[i] {
-                let (lo, hi) = jam_ramp(rest[i], jam);
-                r.lo[i] = lo;
-                r.width[i] = hi - lo;
-                r.inv[i] = 1.0 / (hi - lo);
-                r.toe[i] = toe * rest[i];
-                r.toe_inv[i] = 0.5 / (toe * rest[i]);
-            }
-        }
-        r
-    }
-
-    /// ∫ ramp (m) of spring `i` at length `len` (m).
-    #[inline(always)]
-    fn push(&self, i: usize, len: f64) -> f64 {
-        let a = (self.rest[i] - len - self.lo[i]).max(0.0);
-        let m = a.min(self.width[i]);
-        let s = m * self.inv[i];
-        m * s * s * (1.0 - 0.5 * s) + (a - m)
-    }
-
-    /// The toe's deficit (m) of spring `i` at length `len` (m).
-    #[inline(always)]
-    fn toe_push(&self, i: usize, len: f64) -> f64 {
-        let m = (len - self.rest[i]).max(0.0).min(self.toe[i]);
-        m - m * m * self.toe_inv[i]
-    }
-}
-
-/// The springs' part of [`FastSolver::residual_step`] from spring `first` on: h²k·(l/|d| − 1)·d
-/// added to end a and subtracted from end b (d = xa − xb; coincident ends pull nothing), scaled
-/// by `soft` = kc/k where the spring is compressed (l/|d| > 1), plus the jammed push
-/// h²k·p/|d|·d with p = [`JamRamps::push`] at |d|; where it is stretched, plus the toe's
-/// deficit h²k·(1 − soft)·p/|d|·d with p = [`JamRamps::toe_push`].
-fn springs_scalar(
-    x: &[Lanes4],
-    r: &mut [Lanes4],
-    (ends, hkl, hk): (&[[u32; 2]], &[f64], &[f64]),
-    soft: &[f64],
-    jam: &JamRamps,
-    first: usize,
-) {
-    for i in first..ends.len() {
-        let [a, b] = ends[i];
-        let (a, b) = (a as usize, b as usize);
-        let d = x[a] - x[b];
-        let len2 = d.0[0] * d.0[0] + d.0[1] * d.0[1] + d.0[2] * d.0[2];
-        if len2 > 0.0 {
-            let len = len2.sqrt();
-            let mut c = hkl[i] / len - hk[i];
-            if c > 0.0 {
-                c = c * soft[i] + hk[i] * jam.push(i, len) / len;
-            } else {
-                c += hk[i] * (1.0 - soft[i]) * jam.toe_push(i, len) / len;
-            }
-            let f = d * c;
-            r[a] += f;
-            r[b] -= f;
-        }
-    }
-}
-
-/// The springs' part of [`FastSolver::residual_step`], four springs at a time with AVX2: the
-/// four square roots and divisions are one instruction each, the scatter stays in spring order,
-/// and every operation is the scalar code's (no fusion), so the results are identical. Returns
-/// how many springs were done (a multiple of four); the caller does the rest.
-///
-/// # Safety
-/// The CPU supports AVX2; `x` and `r` have the same length and every end indexes them. (`x` must
-/// also have a zero fourth lane for the results to be the scalar code's.)
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn springs_avx2(
-    x: &[Lanes4],
-    r: &mut [Lanes4],
-    ends: &[[u32; 2]],
-    hkl: &[f64],
-    hk: &[f64],
-    soft: &[f64],
-    jam: &JamRamps,
-) -> usize {
-    use std::arch::x86_64::*;
-    let quads = ends.len() / 4;
-    let (ends, hkl, hk, soft) = (
-        &ends[..4 * quads],
-        &hkl[..4 * quads],
-        &hk[..4 * quads],
-        &soft[..4 * quads],
-    );
-    let (jam_rest, jam_lo, jam_width, jam_inv, toe, toe_inv) = (
-        &jam.rest[..4 * quads],
-        &jam.lo[..4 * quads],
-        &jam.width[..4 * quads],
-        &jam.inv[..4 * quads],
-        &jam.toe[..4 * quads],
-        &jam.toe_inv[..4 * quads],
-    );
-    debug_assert!(x.len() == r.len());
-    debug_assert!(ends.iter().flatten().all(|&i| (i as usize) < x.len()));
-    let (xp, rp) = (x.as_ptr() as *const f64, r.as_mut_ptr() as *mut f64);
-    for q in 0..quads {
-        let e: &[[u32; 2]; 4] = ends[4 * q..4 * q + 4].try_into().expect("4 springs");
-        // SAFETY: indices in range (the caller's contract); `Lanes4` is an aligned [f64; 4].
-        unsafe {
-            let at = |i: u32| xp.add(4 * i as usize);
-            let d: [__m256d; 4] = std::array::from_fn(|j| {
-                _mm256_sub_pd(_mm256_load_pd(at(e[j][0])), _mm256_load_pd(at(e[j][1])))
-            });
-            let sq: [__m256d; 4] = std::array::from_fn(|j| _mm256_mul_pd(d[j], d[j]));
-            // len2_j = (dx² + dy²) + (dz² + 0): the scalar code's sum (lane 3 is zero).
-            let t01 = _mm256_hadd_pd(sq[0], sq[1]);
-            let t23 = _mm256_hadd_pd(sq[2], sq[3]);
-            let lo = _mm256_blend_pd(t01, t23, 0b1100);
-            let hi = _mm256_permute2f128_pd(t01, t23, 0x21);
-            let len2 = _mm256_add_pd(lo, hi);
-            let len = _mm256_sqrt_pd(len2);
-            let hkq = _mm256_loadu_pd(hk.as_ptr().add(4 * q));
-            let c = _mm256_sub_pd(
-                _mm256_div_pd(_mm256_loadu_pd(hkl.as_ptr().add(4 * q)), len),
-                hkq,
-            );
-            // Compressed springs (c > 0) push with kc instead of k, c·(kc/k), plus the jammed
-            // push h²k·JamRamps::push/|d|; stretched ones pull less by the toe's deficit
-            // h²k·(1 − kc/k)·JamRamps::toe_push/|d|; in the scalar code's order.
-            let compressed = _mm256_cmp_pd(c, _mm256_setzero_pd(), _CMP_GT_OQ);
-            let load = |v: &[f64]| _mm256_loadu_pd(v.as_ptr().add(4 * q));
-            let zero = _mm256_setzero_pd();
-            let rest = load(jam_rest);
-            let a = _mm256_max_pd(_mm256_sub_pd(_mm256_sub_pd(rest, len), load(jam_lo)), zero);
-            let m = _mm256_min_pd(a, load(jam_width));
-            let s = _mm256_mul_pd(m, load(jam_inv));
-            let push = _mm256_add_pd(
-                _mm256_mul_pd(
-                    _mm256_mul_pd(_mm256_mul_pd(m, s), s),
-                    _mm256_sub_pd(_mm256_set1_pd(1.0), _mm256_mul_pd(_mm256_set1_pd(0.5), s)),
-                ),
-                _mm256_sub_pd(a, m),
-            );
-            let jam = _mm256_div_pd(_mm256_mul_pd(hkq, push), len);
-            let softq = load(soft);
-            let t = _mm256_min_pd(_mm256_max_pd(_mm256_sub_pd(len, rest), zero), load(toe));
-            let toe_push = _mm256_sub_pd(t, _mm256_mul_pd(_mm256_mul_pd(t, t), load(toe_inv)));
-            let toe_pull = _mm256_div_pd(
-                _mm256_mul_pd(
-                    _mm256_mul_pd(hkq, _mm256_sub_pd(_mm256_set1_pd(1.0), softq)),
-                    toe_push,
-                ),
-                len,
-            );
-            let c = _mm256_blendv_pd(
-                _mm256_add_pd(c, toe_pull),
-                _mm256_add_pd(_mm256_mul_pd(c, softq), jam),
-                compressed,
-            );
-            // Coincident ends pull nothing (and l/0 is discarded).
-            let c = _mm256_and_pd(c, _mm256_cmp_pd(len2, _mm256_setzero_pd(), _CMP_GT_OQ));
-            let cs = [
-                _mm256_permute4x64_pd(c, 0x00),
-                _mm256_permute4x64_pd(c, 0x55),
-                _mm256_permute4x64_pd(c, 0xaa),
-                _mm256_permute4x64_pd(c, 0xff),
-            ];
-            for j in 0..4 {
-                let f = _mm256_mul_pd(d[j], cs[j]);
-                let (a, b) = (rp.add(4 * e[j][0] as usize), rp.add(4 * e[j][1] as usize));
-                _mm256_store_pd(a, _mm256_add_pd(_mm256_load_pd(a), f));
-                _mm256_store_pd(b, _mm256_sub_pd(_mm256_load_pd(b), f));
-            }
-        }
-    }
-    4 * quads
 }
 
 /// Local/global iterations a step with colliders takes at least, whatever its residual: the
@@ -1124,58 +916,6 @@ mod tests {
         let (mut x, mut v) = (start.clone(), vec![DVec3::ZERO; start.len()]);
         let stats = solver.step(&mut x, &mut v).unwrap();
         assert!(stats.residual.is_finite());
-    }
-
-    /// The AVX2 spring kernel gives exactly the scalar loop's residual (coincident ends and a
-    /// count that is not a multiple of four included).
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn avx2_springs_match_the_scalar_loop_exactly() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
-            return;
-        }
-        let n = 40;
-        let x: Vec<Lanes4> = (0..n)
-            .map(|i| {
-                let t = i as f64;
-                Lanes4::from_vec3(DVec3::new((t * 0.7).sin(), (t * 0.3).cos() * 2.0, t * 0.01))
-            })
-            .collect();
-        let mut ends: Vec<[u32; 2]> = (0..n as u32 - 3)
-            .flat_map(|i| [[i, i + 1], [i, i + 3], [i + 2, i]])
-            .collect();
-        ends.push([5, 5]); // coincident ends
-        ends.push([7, 9]);
-        let hkl: Vec<f64> = (0..ends.len()).map(|i| 0.1 + 0.01 * i as f64).collect();
-        let hk: Vec<f64> = (0..ends.len()).map(|i| 0.3 + 0.02 * i as f64).collect();
-        // Compression stiffness ratios from 0 to 1 (both branches of the blend are taken).
-        let soft: Vec<f64> = (0..ends.len()).map(|i| (i % 5) as f64 / 4.0).collect();
-        // Springs that jam (kc < k) at 30 % compression, with lengths before, on and past
-        // their ramps, and toes of 50 % with stretches within and past them.
-        let rest: Vec<f64> = hkl.iter().zip(&hk).map(|(a, b)| a / b).collect();
-        let k = vec![1.0; ends.len()];
-        let jam = JamRamps::new(&rest, &k, &soft, 0.3, 0.5);
-        let regions = |lo: f64, hi: f64| {
-            (0..ends.len())
-                .filter(|&i| {
-                    let [a, b] = ends[i];
-                    let len = (x[a as usize] - x[b as usize]).xyz().length();
-                    let t = (rest[i] - len) / rest[i];
-                    soft[i] < 1.0 && t > lo && t < hi
-                })
-                .count()
-        };
-        assert!(regions(0.0, 0.225) > 0 && regions(0.225, 0.375) > 0 && regions(0.375, 1.0) > 0);
-        assert!(regions(-0.5, 0.0) > 0 && regions(f64::NEG_INFINITY, -0.5) > 0);
-        let mut want = vec![Lanes4::from_vec3(DVec3::new(0.5, -0.25, 1.0)); n];
-        let mut got = want.clone();
-        let springs = (&ends[..], &hkl[..], &hk[..]);
-        springs_scalar(&x, &mut want, springs, &soft, &jam, 0);
-        // SAFETY: AVX2 detected; every end is below n.
-        let done = unsafe { springs_avx2(&x, &mut got, &ends, &hkl, &hk, &soft, &jam) };
-        assert_eq!(done, ends.len() / 4 * 4);
-        springs_scalar(&x, &mut got, springs, &soft, &jam, done);
-        assert_eq!(got, want);
     }
 
     #[test]

@@ -40,9 +40,9 @@ pub struct Material {
     pub compression: f64,
     /// Jamming strain J: the compression strain (a fraction of the rest length, 0 < J < 1)
     /// around which an edge that is softer in compression gets its full tension stiffness added
-    /// back, along a smoothstep ramp from (1 − [`super::system::JAM_RAMP`])·J to (1 + JAM_RAMP)·J,
+    /// back, along a smoothstep ramp from (1 − [`super::law::JAM_RAMP`])·J to (1 + JAM_RAMP)·J,
     /// as yarns pressed together do. (Such an edge also has a toe in tension,
-    /// [`super::system::TOE_STRAIN`].) Default [`DEFAULT_JAM_STRAIN`].
+    /// [`super::law::TOE_STRAIN`].) Default [`DEFAULT_JAM_STRAIN`].
     pub jam_strain: f64,
     /// Bending rigidity B, N·m.
     pub bend: f64,
@@ -146,7 +146,7 @@ pub const FABRIC_COMPRESSION: f64 = 0.001;
 
 /// The default jamming strain of every preset ([`Material::jam_strain`], `--jam-strain`): a
 /// fabric edge compressed by about 6 % of its length resists with its tension stiffness, added
-/// back along a smoothstep ramp from 3 % to 9 % ([`super::system::JAM_RAMP`]). Chosen by
+/// back along a smoothstep ramp from 3 % to 9 % ([`super::law::JAM_RAMP`]). Chosen by
 /// measurement (`docs/performance.md`, "A jamming ramp instead of a step" and "Sweeps on two
 /// cores, and a cap of 200"). On the 8k-vertex skirt hanging from its waist over 30 frames, a
 /// ramp of ±50 % took the fewest Newton iterations, and 8 % the fewest of 7, 8 and 10 % (466

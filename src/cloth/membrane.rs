@@ -25,8 +25,9 @@
 
 use glam::{DMat3, DVec2, DVec3};
 
+use super::law::{spring_energy, spring_terms};
 use super::material::Material;
-use super::system::{spring_energy, spring_terms, PINNED};
+use super::system::PINNED;
 use super::term::{Local, Term};
 use crate::mesh::Mesh;
 
@@ -292,8 +293,8 @@ impl Term for Membrane {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cloth::law::spring_gradient;
     use crate::cloth::material::{fabric_model_terms, MaterialPreset};
-    use crate::cloth::system::spring_gradient;
     use crate::cloth::term::tests::check_against_finite_differences;
 
     /// A w × h grid of unit size in the xy plane, its interior vertices moved by up to

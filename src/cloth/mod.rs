@@ -6,13 +6,14 @@
 
 pub mod collide;
 pub mod drive;
-// The sparse factorisations are internal; benches/cloth.rs measures them with the `internals`
+pub mod fast;
+pub mod law;
+// The linear algebra is internal; benches/cloth.rs measures the factors with the `internals`
 // feature.
 #[cfg(feature = "internals")]
-pub mod factor;
+pub mod linalg;
 #[cfg(not(feature = "internals"))]
-pub(crate) mod factor;
-pub mod fast;
+pub(crate) mod linalg;
 pub mod material;
 pub mod membrane;
 pub mod model;
@@ -22,7 +23,6 @@ pub mod preset;
 pub mod proximity;
 pub mod self_contact;
 pub mod smooth;
-mod split;
 pub mod springs;
 pub mod system;
 pub mod term;

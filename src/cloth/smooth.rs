@@ -26,8 +26,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::{DMat3, DVec3};
 
-use super::collide::contact::{BarrierPlane, NewtonContact};
-use super::system::{spring_response, ReducedSystem, PINNED};
+use super::collide::barrier::BarrierPlane;
+use super::collide::contact::NewtonContact;
+use super::law::spring_response;
+use super::linalg::handoff::{wait_for, PanicGuard};
+use super::system::{ReducedSystem, PINNED};
 use super::term::Term;
 
 /// Models with fewer free particles than this are swept in solver order, on one thread: below
@@ -541,32 +544,6 @@ struct Shared {
 // SAFETY: the pointers are only dereferenced as [`Smoother::sweep_parallel`] describes: in each
 // phase the two threads take disjoint parts mutably and share only reads of the separator.
 unsafe impl Sync for Shared {}
-
-/// Spins (then yields) until `flag` reaches `k` (a panicking thread's [`PanicGuard`] sets it to
-/// `usize::MAX`).
-pub(super) fn wait_for(flag: &AtomicUsize, k: usize) {
-    let mut spins = 0u32;
-    while flag.load(Ordering::Acquire) < k {
-        if spins < 1 << 14 {
-            std::hint::spin_loop();
-            spins += 1;
-        } else {
-            std::thread::yield_now();
-        }
-    }
-}
-
-/// Releases the other thread of a parallel task, waiting on `flag`, when this one panics (it
-/// then passes the panic on instead of waiting for it forever).
-pub(super) struct PanicGuard<'a>(pub(super) &'a AtomicUsize);
-
-impl Drop for PanicGuard<'_> {
-    fn drop(&mut self) {
-        if std::thread::panicking() {
-            self.0.store(usize::MAX, Ordering::Release);
-        }
-    }
-}
 
 /// What every local step of a sweep reads.
 #[derive(Clone, Copy)]

@@ -48,7 +48,7 @@ pub struct SpringSet {
     pub skipped_zero_length: usize,
     /// Compression strain (a fraction of the rest length, in (0, 1)) past which a spring softer
     /// in compression than in tension jams: the tension stiffness adds back (see
-    /// [`super::system::spring_response`]). Symmetric springs never jam. Default
+    /// [`super::law::spring_response`]). Symmetric springs never jam. Default
     /// [`super::material::DEFAULT_JAM_STRAIN`]; a fabric's comes from its material.
     pub jam_strain: f64,
 }

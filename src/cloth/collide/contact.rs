@@ -1,15 +1,5 @@
 //! Contact response inside the solvers.
 //!
-//! - The fast solver keeps its prefactored matrix A and iterates on corrections δ to x, with
-//!   r = −h²∇g(x) the force residual. At a particle resting on a collider the collider pushes
-//!   back: the inward normal part of r is cancelled and the tangential part is reduced by the
-//!   Coulomb limit μ·(normal reaction), to zero when static ([`contact_reaction`]); the particle
-//!   is then held along the normal (or entirely, when sticking) in the correction, which solves
-//!   A·δ = r on the subspace the colliders leave free, by conjugate gradients preconditioned with
-//!   the prefactored Cholesky factor of A (the filtered solve of Baraff and Witkin 1998). After
-//!   each correction, particles that entered a collider are moved out along its normal to the
-//!   thickness ([`push_out`]). A fixed point is an equilibrium of the implicit step with contact
-//!   forces obeying Coulomb's law.
 //! - Newton keeps every particle at least the thickness from every collider as a constraint:
 //!   a projected Newton method holds the particles pushed into a collider along its normal and
 //!   moves the others, projecting whatever enters a collider back out and settling the held
@@ -30,100 +20,11 @@
 
 use glam::{DMat3, DVec3};
 
+use super::barrier::{
+    barrier_band, barrier_shape, barrier_strength, BarrierPlane, MIN_BARRIER_LAYER,
+};
 use super::{Collider, Colliders, SurfacePoint};
 use crate::cloth::system::ReducedSystem;
-
-/// Moves `p` out of every collider along the surface normal to the thickness, and returns what
-/// [`resting_on`] says of its final position (re-asked only when `p` moved, else read off the
-/// same queries).
-#[inline]
-pub fn push_out(colliders: &Colliders, p: &mut DVec3, x0: DVec3) -> Option<SurfacePoint> {
-    let (t, touch) = (colliders.thickness, touch_distance(colliders));
-    let mut moved = false;
-    let mut resting = None;
-    for shape in &colliders.shapes {
-        let Some(surface) = shape.contact(*p, x0, touch + p.distance(x0)) else {
-            continue;
-        };
-        if surface.distance < t {
-            *p += surface.normal * (t - surface.distance);
-            moved = true;
-        } else if surface.distance <= touch && resting.is_none() {
-            resting = Some(surface);
-        }
-    }
-    if moved {
-        resting_on(colliders, *p, x0)
-    } else {
-        resting
-    }
-}
-
-/// The collider surface `p` rests on: the first collider it is within the thickness of (up to a
-/// relative round-off allowance), as seen from `x0`, the start of the step.
-#[inline]
-pub fn resting_on(colliders: &Colliders, p: DVec3, x0: DVec3) -> Option<SurfacePoint> {
-    let touch = touch_distance(colliders);
-    colliders.shapes.iter().find_map(|shape| {
-        shape
-            .contact(p, x0, touch + p.distance(x0))
-            .filter(|s| s.distance <= touch)
-    })
-}
-
-/// The thickness plus a relative round-off allowance: a particle pushed out to the thickness
-/// counts as resting there.
-#[inline]
-fn touch_distance(colliders: &Colliders) -> f64 {
-    colliders.thickness * (1.0 + 1e-9) + 1e-12
-}
-
-/// How a collider holds a particle resting on it during a linear solve.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Hold {
-    /// Not held: the particle is pulled off the surface.
-    Free,
-    /// Held along the normal; slides in the tangent plane (kinetic friction applied).
-    Slide(DVec3),
-    /// Held in place by static friction.
-    Stick,
-}
-
-impl Hold {
-    /// Removes the held components of a displacement or force.
-    #[inline]
-    pub fn filter(self, v: DVec3) -> DVec3 {
-        match self {
-            Hold::Free => v,
-            Hold::Slide(n) => v - n * v.dot(n),
-            Hold::Stick => DVec3::ZERO,
-        }
-    }
-}
-
-/// The collider's reaction to `force` (any units) on a particle resting on `surface`. A force
-/// pulling the particle off the surface is left alone ([`Hold::Free`]). Otherwise the collider
-/// takes the inward normal part (the reaction λ = −force·n) and Coulomb friction takes up to μλ
-/// of the tangential part: all of it when that suffices ([`Hold::Stick`], the force becomes
-/// zero), else the tangential part shrinks by μλ ([`Hold::Slide`]).
-#[inline]
-pub fn contact_reaction(friction: f64, surface: &SurfacePoint, force: &mut DVec3) -> Hold {
-    let n = surface.normal;
-    let normal = force.dot(n);
-    if normal >= 0.0 {
-        return Hold::Free;
-    }
-    let tangential = *force - n * normal;
-    let len = tangential.length();
-    let limit = -friction * normal;
-    if len <= limit {
-        *force = DVec3::ZERO;
-        Hold::Stick
-    } else {
-        *force = tangential * (1.0 - limit / len);
-        Hold::Slide(n)
-    }
-}
 
 /// Slip speed (m/s) below which Newton's friction acts as a stiff spring: static friction holds a
 /// particle on a slope up to a creep of about this speed × tan(slope)/μ.
@@ -138,34 +39,6 @@ struct LaggedContact {
     normal: DVec3,
     /// Normal force at the end of the previous step, N.
     force: f64,
-}
-
-/// A collider's surface near a particle as its tangent plane, for evaluating the barrier while
-/// the particle moves a little ([`NewtonContact::barrier_planes`]).
-#[derive(Debug, Clone, Copy)]
-pub struct BarrierPlane {
-    /// Unit normal, towards the free side.
-    normal: DVec3,
-    /// The signed distance of a point p from the plane is normal·p + offset, m.
-    offset: f64,
-    /// The band's bottom and width, m.
-    lo: f64,
-    width: f64,
-}
-
-impl BarrierPlane {
-    /// How deep `p` is into this plane's band: 0 at its bottom, 1 at its top (see
-    /// [`barrier_shape`]).
-    #[inline]
-    fn depth(&self, p: DVec3) -> f64 {
-        (self.normal.dot(p) + self.offset - self.lo) / self.width
-    }
-
-    /// Whether `p` is above the band's bottom, where the barrier is finite.
-    #[inline]
-    pub fn allows(&self, p: DVec3) -> bool {
-        self.depth(p) > 0.0
-    }
 }
 
 /// a bᵀ.
@@ -240,42 +113,6 @@ pub enum ContactModel {
     /// unbounded towards half a layer, the contact forces part of the converged equilibrium
     #[default]
     Barrier,
-}
-
-/// The barrier's force at the middle of its band (a particle resting one layer from the
-/// surface), in weights of the particle (mᵢ·g₀).
-const BARRIER_HOLD: f64 = 10.0;
-
-/// The thinnest layer a barrier is given, in thicknesses.
-const MIN_BARRIER_LAYER: f64 = 0.1;
-
-/// Standard gravity, m/s²: the barrier's force unit is a particle's standard weight.
-const G0: f64 = 9.80665;
-
-/// The barrier's shape on u ∈ (0, 1), the particle's depth into the band (0 at its bottom, 1 at
-/// its top): β(u) = −(u − 1)² ln u, with β′ and β″. β(1) = β′(1) = β″(1) = 0 (the barrier starts
-/// smoothly), β → ∞ as u → 0.
-#[inline]
-pub(crate) fn barrier_shape(u: f64) -> (f64, f64, f64) {
-    let (v, l) = (u - 1.0, u.ln());
-    (
-        -v * v * l,
-        -(2.0 * v * l + v * v / u),
-        -(2.0 * l + 4.0 * v / u - v * v / (u * u)),
-    )
-}
-
-/// The barrier's strength c for a particle of mass `m` (kg): c·mᵢ·g₀ with c such that the force
-/// at the band's middle is [`BARRIER_HOLD`] weights, N. Self-contact uses it per pair.
-pub(crate) fn barrier_strength(m: f64) -> f64 {
-    BARRIER_HOLD / -barrier_shape(0.5).1 * m * G0
-}
-
-/// The barrier band of a particle with layer ℓ: its bottom (where the energy is infinite) and
-/// width, m. The band spans (ℓ/2, 3ℓ/2): a particle pushed out to its layer sits at its middle.
-#[inline]
-fn barrier_band(layer: f64) -> (f64, f64) {
-    (0.5 * layer, layer)
 }
 
 /// How far [`NewtonContact::begin_step`] looks for a mesh collider's surface around each

@@ -7,8 +7,10 @@
 //! Coulomb friction, Newton as constraints of a projected Newton method with lagged friction, see
 //! [`contact`]).
 
+pub mod barrier;
 pub mod contact;
 pub mod mesh;
+pub mod reaction;
 pub mod shapes;
 
 use std::path::PathBuf;

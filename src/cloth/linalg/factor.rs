@@ -8,7 +8,6 @@
 //! load; the sweeps accumulate in registers and never allocate. Callers order their unknowns
 //! once with [`fill_reducing_order`], so the factor needs no permutation at solve time.
 
-use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholeskyRaw, SymmetricOrdering,
 };
@@ -18,6 +17,7 @@ use faer::{dyn_stack::MemBuffer, dyn_stack::MemStack, Par, Side};
 use glam::DVec3;
 use sprs::{CsMat, TriMat};
 
+use super::lanes::{backward_rows, dot, forward_rows, Lanes, Lanes4, Lanes4f};
 use crate::error::{Error, Result};
 
 /// A lower-triangular Cholesky factor L (A = L·Lᵀ) in supernodes laid out for [`Cholesky::solve3`].
@@ -85,7 +85,7 @@ pub fn upper_from_triplets(n: usize, triplets: &[(usize, usize, f64)]) -> CsMat<
     tri.to_csc()
 }
 
-fn faer_view(upper: &CsMat<f64>) -> SparseColMatRef<'_, usize, f64> {
+pub(super) fn faer_view(upper: &CsMat<f64>) -> SparseColMatRef<'_, usize, f64> {
     assert!(upper.is_csc(), "factor expects compressed columns");
     let n = upper.cols();
     let symbolic = SymbolicSparseColMatRef::new_checked(
@@ -136,138 +136,7 @@ pub fn analyse_upper_with(
     .map_err(|e| Error::Factorisation(format!("symbolic analysis: {e:?}")))
 }
 
-/// A fill-reducing order for the n×n symmetric pattern given by `pairs` (plus the diagonal):
-/// `order[new] = old`.
-///
-/// Two candidates, and the one whose Cholesky factor has fewer entries (as CHOLMOD chooses):
-/// faer's approximate minimum degree, and METIS's multilevel nested dissection (`METIS_NodeND`,
-/// default options: its fixed random seed makes the order the same on every run). Nested
-/// dissection wins on garment-sized meshes (on the 8k-vertex skirt's Newton Hessian 21 % fewer
-/// factor entries and 42 % fewer flops, docs/performance.md); minimum degree on small ones (the
-/// 315-particle Fox cape).
-///
-/// # Errors
-/// [`Error::Factorisation`] when either ordering fails (out of memory) or the graph is too large
-/// for METIS's 32-bit indices.
-pub fn fill_reducing_order(
-    n: usize,
-    pairs: impl Iterator<Item = (usize, usize)>,
-) -> Result<Vec<u32>> {
-    // Both directions of every edge, without self loops or duplicates (as METIS requires).
-    let mut edges: Vec<(u32, u32)> = pairs
-        .filter(|(a, b)| a != b)
-        .flat_map(|(a, b)| [(a as u32, b as u32), (b as u32, a as u32)])
-        .collect();
-    edges.sort_unstable();
-    edges.dedup();
-    if n < 3 || edges.is_empty() {
-        return Ok((0..n as u32).collect());
-    }
-    let mut triplets: Vec<(usize, usize, f64)> = (0..n).map(|i| (i, i, 1.0)).collect();
-    triplets.extend(
-        edges
-            .iter()
-            .filter(|(a, b)| a < b)
-            .map(|&(a, b)| (a as usize, b as usize, 1.0)),
-    );
-    let upper = upper_from_triplets(n, &triplets);
-    let pattern = faer_view(&upper).symbolic();
-    let analyse = |ordering| {
-        factorize_symbolic_cholesky(pattern, Side::Upper, ordering, simplicial())
-            .map_err(|e| Error::Factorisation(format!("ordering: {e:?}")))
-    };
-    let amd = analyse(SymmetricOrdering::Amd)?;
-    let amd_order: Vec<u32> = match amd.perm() {
-        Some(perm) => perm.arrays().0.iter().map(|&i| i as u32).collect(),
-        None => (0..n as u32).collect(),
-    };
-    let nd_order = nested_dissection(n, &edges)?;
-    let forward: Vec<usize> = nd_order.iter().map(|&o| o as usize).collect();
-    let mut inverse = vec![0usize; n];
-    for (new, &old) in forward.iter().enumerate() {
-        inverse[old] = new;
-    }
-    let nd = analyse(SymmetricOrdering::Custom(PermRef::new_checked(
-        &forward, &inverse, n,
-    )))?;
-    Ok(if nd.len_val() < amd.len_val() {
-        nd_order
-    } else {
-        amd_order
-    })
-}
-
-/// Serialises calls into METIS (see [`nested_dissection`]).
-static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-/// METIS's nested-dissection order (`order[new] = old`) of the graph on n vertices whose
-/// adjacency `edges` lists both directions of every edge, sorted, without self loops.
-fn nested_dissection(n: usize, edges: &[(u32, u32)]) -> Result<Vec<u32>> {
-    let too_large =
-        || Error::Factorisation(format!("ordering: {n} unknowns are too many for METIS"));
-    let idx = |i: usize| metis_sys::idx_t::try_from(i).map_err(|_| too_large());
-    let mut xadj = Vec::with_capacity(n + 1);
-    let mut next = 0;
-    for v in 0..n as u32 {
-        xadj.push(idx(next)?);
-        while next < edges.len() && edges[next].0 == v {
-            next += 1;
-        }
-    }
-    xadj.push(idx(next)?);
-    let mut adjncy = edges
-        .iter()
-        .map(|&(_, b)| idx(b as usize))
-        .collect::<Result<Vec<_>>>()?;
-    let mut nvtxs = idx(n)?;
-    let (mut perm, mut iperm) = (vec![0; n], vec![0; n]);
-    // METIS seeds one process-wide random generator (GKlib's `mt` array) at the start of each
-    // call and draws from it throughout: concurrent calls (a scene's jobs run in parallel) would
-    // interleave their draws and make the order, hence the bake's roundoff, vary from run to run.
-    // A poisoned lock only means another ordering panicked; the generator is reseeded anyway.
-    let _serial = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
-    // SAFETY: METIS_NodeND reads nvtxs, xadj (nvtxs + 1 entries) and adjncy (xadj[nvtxs] entries,
-    // each in 0..nvtxs, symmetric, no self loops: built above) and writes nvtxs entries to perm
-    // and iperm; null vertex weights and options select its defaults. It keeps no pointer.
-    let status = unsafe {
-        metis_sys::METIS_NodeND(
-            &mut nvtxs,
-            xadj.as_mut_ptr(),
-            adjncy.as_mut_ptr(),
-            std::ptr::null_mut(),
-            std::ptr::null_mut(),
-            perm.as_mut_ptr(),
-            iperm.as_mut_ptr(),
-        )
-    };
-    if status != metis_sys::rstatus_et_METIS_OK {
-        return Err(Error::Factorisation(format!(
-            "ordering: METIS nested dissection failed (status {status})"
-        )));
-    }
-    // perm[new] = old (METIS's manual: row i of the permuted matrix is row perm[i]).
-    let mut seen = vec![false; n];
-    let mut order = Vec::with_capacity(n);
-    for &o in &perm {
-        match usize::try_from(o)
-            .ok()
-            .filter(|&o| seen.get(o) == Some(&false))
-        {
-            Some(o) => {
-                seen[o] = true;
-                order.push(o as u32);
-            }
-            None => {
-                return Err(Error::Factorisation(
-                    "ordering: METIS returned an index twice or out of range".to_string(),
-                ))
-            }
-        }
-    }
-    Ok(order)
-}
-
-fn simplicial() -> CholeskySymbolicParams<'static> {
+pub(super) fn simplicial() -> CholeskySymbolicParams<'static> {
     CholeskySymbolicParams {
         supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
         ..Default::default()
@@ -628,78 +497,6 @@ impl Cholesky<f32> {
     }
 }
 
-/// Right-hand-side element types of the triangular sweeps over factor values of type `V`:
-/// small vectors of f64 or f32.
-trait Lanes<V>:
-    Copy
-    + std::ops::Sub<Output = Self>
-    + std::ops::Neg<Output = Self>
-    + std::ops::AddAssign
-    + std::ops::SubAssign
-{
-    const ZERO: Self;
-    /// self + a·l
-    fn mul_add(self, a: Self, l: V) -> Self;
-    /// self·l
-    fn scale(self, l: V) -> Self;
-    /// Self with negligible components set to zero (f32 lanes: |v| < [`FLUSH_BELOW`]), applied
-    /// to every solved unknown, so that decaying solutions do not go subnormal.
-    #[inline(always)]
-    fn flush(self) -> Self {
-        self
-    }
-}
-
-/// [`Cholesky::solve4f`] sets solved components below this magnitude to zero: far below f32's
-/// resolution of an order-1 right-hand side, and far enough above f32's smallest normal number
-/// (1.2e-38) that products with the factor's values stay normal (subnormal operands and results
-/// cost a microcode assist per multiply-add on x86).
-pub const FLUSH_BELOW: f32 = 1e-25;
-
-impl Lanes<f64> for DVec3 {
-    const ZERO: Self = DVec3::ZERO;
-    #[inline(always)]
-    fn mul_add(self, a: Self, l: f64) -> Self {
-        self + a * l
-    }
-    #[inline(always)]
-    fn scale(self, l: f64) -> Self {
-        self * l
-    }
-}
-
-impl Lanes<f32> for DVec3 {
-    const ZERO: Self = DVec3::ZERO;
-    #[inline(always)]
-    fn mul_add(self, a: Self, l: f32) -> Self {
-        self + a * f64::from(l)
-    }
-    #[inline(always)]
-    fn scale(self, l: f32) -> Self {
-        self * f64::from(l)
-    }
-}
-
-/// Four f64 lanes aligned to 32 bytes: a right-hand side of [`Cholesky::solve4`] (x, y, z and a
-/// spare lane).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-#[repr(C, align(32))]
-pub struct Lanes4(pub [f64; 4]);
-
-impl Lanes4 {
-    /// (x, y, z, 0).
-    #[inline(always)]
-    pub fn from_vec3(v: DVec3) -> Self {
-        Lanes4([v.x, v.y, v.z, 0.0])
-    }
-
-    /// The first three lanes.
-    #[inline(always)]
-    pub fn xyz(self) -> DVec3 {
-        DVec3::new(self.0[0], self.0[1], self.0[2])
-    }
-}
-
 /// The lane-wise arithmetic of a padded right-hand side type `$t` with scalar `$s`: `+`, `−`,
 /// `*` lane by lane, `*` by a scalar, negation, `+=` and `−=`.
 macro_rules! lane_ops {
@@ -762,131 +559,10 @@ macro_rules! lane_ops {
 lane_ops!(Lanes4, f64);
 lane_ops!(Lanes4f, f32);
 
-impl Lanes<f64> for Lanes4 {
-    const ZERO: Self = Lanes4([0.0; 4]);
-    #[inline(always)]
-    fn mul_add(self, a: Self, l: f64) -> Self {
-        // `mul_add` becomes one fused instruction where FMA is enabled (and is exact either way).
-        Lanes4(std::array::from_fn(|k| a.0[k].mul_add(l, self.0[k])))
-    }
-    #[inline(always)]
-    fn scale(self, l: f64) -> Self {
-        self * l
-    }
-}
-
-/// f64 right-hand sides over f32 factor values (each value widened once per use).
-impl Lanes<f32> for Lanes4 {
-    const ZERO: Self = Lanes4([0.0; 4]);
-    #[inline(always)]
-    fn mul_add(self, a: Self, l: f32) -> Self {
-        let l = f64::from(l);
-        Lanes4(std::array::from_fn(|k| a.0[k].mul_add(l, self.0[k])))
-    }
-    #[inline(always)]
-    fn scale(self, l: f32) -> Self {
-        self * f64::from(l)
-    }
-}
-
-/// Four f32 lanes aligned to 16 bytes (one 128-bit vector): a right-hand side of
-/// [`Cholesky::solve4f`] (x, y, z and a spare lane).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-#[repr(C, align(16))]
-pub struct Lanes4f(pub [f32; 4]);
-
-impl Lanes4f {
-    /// The first three lanes of `v`, rounded to f32 (the fourth is 0).
-    #[inline(always)]
-    pub fn from_lanes4(v: Lanes4) -> Self {
-        Lanes4f([v.0[0] as f32, v.0[1] as f32, v.0[2] as f32, 0.0])
-    }
-
-    /// The four lanes widened to f64.
-    #[inline(always)]
-    pub fn to_lanes4(self) -> Lanes4 {
-        Lanes4(self.0.map(f64::from))
-    }
-}
-
-impl Lanes<f32> for Lanes4f {
-    const ZERO: Self = Lanes4f([0.0; 4]);
-    #[inline(always)]
-    fn mul_add(self, a: Self, l: f32) -> Self {
-        Lanes4f(std::array::from_fn(|k| a.0[k].mul_add(l, self.0[k])))
-    }
-    #[inline(always)]
-    fn scale(self, l: f32) -> Self {
-        self * l
-    }
-    #[inline(always)]
-    fn flush(self) -> Self {
-        Lanes4f(self.0.map(|v| if v.abs() < FLUSH_BELOW { 0.0 } else { v }))
-    }
-}
-
-/// The forward update of a supernode of width W: tail[r − c1] −= Σ_j L[r, j]·y[j] per pattern row.
-#[inline(always)]
-fn forward_rows<V: Copy, T: Lanes<V>, const W: usize>(
-    rows: &[u32],
-    below: &[V],
-    y: &[T],
-    tail: &mut [T],
-    c1: usize,
-) {
-    let y: &[T; W] = y.try_into().expect("supernode width");
-    for (&r, l) in rows.iter().zip(below.chunks_exact(W)) {
-        let mut acc = <T as Lanes<V>>::ZERO;
-        for j in 0..W {
-            acc = acc.mul_add(y[j], l[j]);
-        }
-        tail[r as usize - c1] -= acc;
-    }
-}
-
-/// The backward update of a supernode of width W: x[j] −= Σ_r L[r, j]·x[r].
-#[inline(always)]
-fn backward_rows<V: Copy, T: Lanes<V>, const W: usize>(
-    rows: &[u32],
-    below: &[V],
-    x: &mut [T],
-    tail: &[T],
-    c1: usize,
-) {
-    let x: &mut [T; W] = x.try_into().expect("supernode width");
-    let mut acc = *x;
-    for (&r, l) in rows.iter().zip(below.chunks_exact(W)) {
-        let xr = tail[r as usize - c1];
-        for j in 0..W {
-            acc[j] = acc[j].mul_add(-xr, l[j]);
-        }
-    }
-    *x = acc;
-}
-
-/// Σ l[j]·y[j], four accumulators to hide the multiply-add latency.
-#[inline(always)]
-fn dot<V: Copy, T: Lanes<V>>(l: &[V], y: &[T]) -> T {
-    let mut acc = [<T as Lanes<V>>::ZERO; 4];
-    let (l4, y4) = (l.chunks_exact(4), y.chunks_exact(4));
-    let (lr, yr) = (l4.remainder(), y4.remainder());
-    for (l, y) in l4.zip(y4) {
-        for k in 0..4 {
-            acc[k] = acc[k].mul_add(y[k], l[k]);
-        }
-    }
-    for (l, y) in lr.iter().zip(yr) {
-        acc[0] = acc[0].mul_add(*y, *l);
-    }
-    acc[0] += acc[1];
-    acc[2] += acc[3];
-    acc[0] += acc[2];
-    acc[0]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cloth::linalg::ordering::{fill_reducing_order, nested_dissection};
 
     /// 1-D Laplacian plus identity on a path graph, in a shuffled order.
     fn path_matrix(n: usize) -> Vec<(usize, usize, f64)> {

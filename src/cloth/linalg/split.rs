@@ -40,7 +40,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Accum, MatMut, MatRef, Par, Side};
 
 use super::factor::analyse_upper;
-use super::smooth::{wait_for, PanicGuard};
+use super::handoff::{wait_for, PanicGuard};
 
 /// Tops larger than this many columns are not split off: their three dense factorisations (a
 /// 1,500-column one is about 1.1 Gflop) would cost more than a garment's whole sparse factor.
@@ -745,7 +745,7 @@ impl Shared {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cloth::factor::{fill_reducing_order, upper_from_triplets};
+    use crate::cloth::linalg::{fill_reducing_order, upper_from_triplets};
 
     type Triplets = Vec<(usize, usize, f64)>;
 

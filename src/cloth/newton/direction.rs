@@ -1,0 +1,411 @@
+//! The Newton direction: the Hessian's factor and the solve, refined or by conjugate gradients.
+//!
+//! Precision: a supernodal factor is computed in single precision (about 1.5× faster than in
+//! double on the 8k-vertex skirt: half the memory traffic, twice the values per SIMD
+//! multiply-add; small systems' simplicial factors stay in double precision) and
+//! each direction is refined against the double-precision Hessian until a correction is below
+//! 1e-4 of it (split factor: conjugate gradients to 1e-2, whose residuals are in double
+//! precision); the gradient, the objective, the line search and the residual the tolerance is
+//! checked on stay in double precision. A matrix too ill-conditioned for single precision (the
+//! factor fails, or refinement stalls) gets a double-precision factor for the rest of the step.
+//!
+//! Split factor ([`BendingFactor::Split`], the default): what is factored is H' = H + D, each
+//! stencil's block between its two opposite vertices moved onto their diagonals (D ≥ 0), which
+//! halves the factor; the direction still solves H Δx = −∇g, by conjugate gradients with
+//! products by H, preconditioned by the factor of H'.
+//!
+//! Two halves ([`SplitCholesky`]): with the split factor, when the elimination tree branches
+//! into two balanced subtrees below its top separator (garment-sized meshes), the
+//! single-precision factor is computed as those two halves and a dense top, the halves on two
+//! threads at once, and the preconditioner's solves run the halves at once too
+//! ([`NewtonSolver::with_threads`]). One thread does the same arithmetic in the same order, so
+//! the bake does not depend on the thread count. On the 8k-vertex skirt (a top of 330 of its
+//! 23,979 unknowns) a factorisation takes 12.7 ms on two threads, against 21.9 ms for faer's
+//! whole factor and 22.7 ms for the halves one after the other on one thread
+//! (`docs/performance.md`, "The factor's two halves on two cores").
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::LltRef;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+use glam::DVec3;
+
+use super::pattern::opposite_split;
+use super::NewtonSolver;
+use crate::cloth::system::OPPOSITE;
+use crate::error::{Error, Result};
+
+/// The numeric factorisation's parallelism: one thread. faer's rayon pool on both cores of our
+/// machines made the factor 1.2–1.8× slower (criterion, Newton's factor: 108 → 59 ms on the
+/// 100×100 lab grid, 586 → 494 ms on 200×200, 162 → 106 ms on tableCloth), its threads waking and
+/// yielding more than they computed (perf: ~40 % of the time in the scheduler).
+pub(super) fn factor_par() -> Par {
+    Par::Seq
+}
+
+/// The precision of the Newton factor an iteration holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Precision {
+    Single,
+    Double,
+}
+
+/// Refinements of a single-precision Newton direction at most (each a Hessian product in double
+/// precision and a pair of single-precision triangular solves); there is always at least one.
+pub(super) const REFINEMENTS: usize = 3;
+
+/// A single-precision direction stops refining once a correction is below this fraction of the
+/// direction: far below what moves Newton's iterates visibly (an inexact Newton method's rate is
+/// about the direction's relative error).
+pub(super) const REFINED: f64 = 1e-4;
+
+/// A single-precision direction whose last correction is still above this fraction of it (a
+/// matrix too ill-conditioned for single precision: refinement does not converge) is replaced by
+/// a double-precision one.
+pub(super) const DIRECTION_ACCURACY: f64 = 1e-2;
+
+/// A split-factor direction ([`BendingFactor::Split`]) stops its conjugate gradients once an
+/// update is below this fraction of the direction, or below a tenth of the Newton tolerance
+/// where that is smaller: at the default tolerance (0.1) as accurate as a refined
+/// single-precision direction is required to be ([`DIRECTION_ACCURACY`]). On the 8k-vertex skirt
+/// hanging for 30 frames, 1e-2 took 6.4 gradients a direction and 154 Newton iterations, 1e-3
+/// 9.2 and 152. A tight solve needs the tighter directions: to ρ ≤ 1e-3 the circle skirt's third
+/// step wandered between ρ = 3e-3 and 0.3 for 300 iterations with directions to 1e-2, their
+/// error left in the slow (bending) modes that the gradients resolve last, and converged with
+/// directions to 1e-4 (`gauss_seidel_sweeps_shorten_newton_without_moving_its_solution`).
+pub(super) const CG_TOLERANCE: f64 = 1e-2;
+
+/// A split-factor direction also leaves at most this fraction of −∇g unbalanced: ‖H Δx + ∇g‖
+/// ≤ 0.1 ‖∇g‖ (Eisenstat and Walker's forcing term of an inexact Newton method, held fixed).
+pub(super) const CG_RESIDUAL: f64 = 0.1;
+
+/// Conjugate-gradient iterations per split-factor direction at most; a single-precision
+/// preconditioner that has not converged by then is replaced by a double-precision one.
+pub(super) const CG_MAX_ITERATIONS: usize = 60;
+
+/// faer's workspace (which has no `Debug`).
+pub(super) struct Scratch(pub(super) MemBuffer);
+
+impl std::fmt::Debug for Scratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Scratch")
+    }
+}
+
+/// out −= A v, A symmetric, given by its upper triangle in compressed columns.
+pub(super) fn subtract_product(
+    col_ptr: &[usize],
+    row_idx: &[u32],
+    values: &[f64],
+    v: &[f64],
+    out: &mut [f64],
+) {
+    for c in 0..v.len() {
+        let (vc, column) = (v[c], col_ptr[c]..col_ptr[c + 1]);
+        let (rows, values) = (&row_idx[column.clone()], &values[column]);
+        // Rows ascend, so the diagonal entry, when stored, is the column's last.
+        let off = match rows.last() {
+            Some(&r) if r as usize == c => rows.len() - 1,
+            _ => rows.len(),
+        };
+        let mut below = 0.0;
+        for (&r, &a) in rows[..off].iter().zip(&values[..off]) {
+            below += a * v[r as usize];
+            out[r as usize] -= a * vc;
+        }
+        if let Some(&a) = values.get(off) {
+            below += a * vc;
+        }
+        out[c] -= below;
+    }
+}
+
+pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Writes −g into `out`, 3 scalars per vector.
+pub(super) fn negate_into(out: &mut [f64], g: &[DVec3]) {
+    for (o, g) in out.chunks_exact_mut(3).zip(g) {
+        o.copy_from_slice(&(-*g).to_array());
+    }
+}
+
+impl NewtonSolver {
+    /// Factors the assembled Hessian: in single precision while that has not failed in this
+    /// step, else in double precision.
+    pub(super) fn factorize(&mut self) -> Result<()> {
+        if let Some(split) = self.split_factor.as_mut().filter(|_| self.try_single) {
+            if split.factor(&self.values) {
+                self.held_factor = Precision::Single;
+                return Ok(());
+            }
+            self.try_single = false;
+        }
+        if self.try_single {
+            for (v32, v) in self.values32.iter_mut().zip(&self.values) {
+                *v32 = *v as f32;
+            }
+            let dim = self.dx.len();
+            let pattern =
+                SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx);
+            let factored = self.symbolic.factorize_numeric_llt(
+                &mut self.l_values32,
+                SparseColMatRef::new(pattern, &self.values32),
+                Side::Upper,
+                Default::default(),
+                factor_par(),
+                MemStack::new(&mut self.scratch.0),
+                Default::default(),
+            );
+            if factored.is_ok() {
+                self.held_factor = Precision::Single;
+                return Ok(());
+            }
+            // Rounding to single precision lost definiteness: the matrix is too ill-conditioned
+            // for it.
+            self.try_single = false;
+        }
+        self.factorize_double()
+    }
+
+    pub(super) fn factorize_double(&mut self) -> Result<()> {
+        let dim = self.dx.len();
+        let pattern =
+            SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx);
+        let a = SparseColMatRef::new(pattern, &self.values);
+        self.symbolic
+            .factorize_numeric_llt(
+                &mut self.l_values,
+                a,
+                Side::Upper,
+                Default::default(),
+                factor_par(),
+                MemStack::new(&mut self.scratch.0),
+                Default::default(),
+            )
+            .map_err(|e| {
+                Error::Factorisation(format!("Newton Hessian is not positive definite ({e:?})"))
+            })?;
+        self.held_factor = Precision::Double;
+        Ok(())
+    }
+
+    /// Overwrites `self.dx` with −H⁻¹∇g (∇g less what the colliders hold).
+    ///
+    /// With a double-precision factor: one pair of triangular solves. With a single-precision
+    /// one, iterative refinement: solve, compute the residual −∇g − H·Δx with the
+    /// double-precision Hessian, solve for a correction and add it, at least once and up to
+    /// [`REFINEMENTS`] times while the correction is above [`REFINED`] of Δx. A direction whose
+    /// last correction is still above [`DIRECTION_ACCURACY`] of it (a matrix too ill-conditioned
+    /// for single precision) is recomputed with a double-precision factor, as is every later
+    /// one in this step.
+    ///
+    /// # Errors
+    /// [`Error::Factorisation`] when that double-precision factor fails.
+    pub(super) fn solve_direction(&mut self) -> Result<()> {
+        let dim = self.dx.len();
+        if self.split || self.self_coupled() {
+            if self.held_factor == Precision::Single {
+                if self.cg_direction() {
+                    self.directions[0] += 1;
+                    return Ok(());
+                }
+                self.try_single = false;
+                self.factorize_double()?;
+            }
+            // A double-precision preconditioner: its last iterate is a descent direction even
+            // where the gradients stopped at the cap.
+            self.cg_direction();
+            self.directions[1] += 1;
+            return Ok(());
+        }
+        if self.held_factor == Precision::Single {
+            self.dx.fill(0.0);
+            negate_into(&mut self.refine, &self.free_grad);
+            let mut accurate = false;
+            for round in 0..=REFINEMENTS {
+                for (b, r) in self.rhs32.iter_mut().zip(&self.refine) {
+                    *b = *r as f32;
+                }
+                let llt = LltRef::new(&self.symbolic, &self.l_values32);
+                let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
+                llt.solve_in_place_with_conj(
+                    Conj::No,
+                    rhs,
+                    Par::Seq,
+                    MemStack::new(&mut self.scratch.0),
+                );
+                let mut correction = 0.0;
+                let mut total = 0.0;
+                for (d, c) in self.dx.iter_mut().zip(&self.rhs32) {
+                    *d += f64::from(*c);
+                    correction += f64::from(*c) * f64::from(*c);
+                    total += *d * *d;
+                }
+                // A correction estimates the error of the direction before it (in every mode,
+                // soft ones included, which the residual alone would hide).
+                let (correction, total) = (correction.sqrt(), total.sqrt());
+                if round > 0 {
+                    accurate = correction <= DIRECTION_ACCURACY * total;
+                    if correction <= REFINED * total || !accurate && round == REFINEMENTS {
+                        break;
+                    }
+                }
+                if round < REFINEMENTS {
+                    self.direction_residual();
+                }
+            }
+            if accurate && self.dx.iter().all(|d| d.is_finite()) {
+                self.directions[0] += 1;
+                return Ok(());
+            }
+            self.try_single = false;
+            self.factorize_double()?;
+        }
+        negate_into(&mut self.dx, &self.free_grad);
+        let llt = LltRef::new(&self.symbolic, &self.l_values);
+        let rhs = MatMut::from_column_major_slice_mut(&mut self.dx, dim, 1);
+        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.scratch.0));
+        self.directions[1] += 1;
+        Ok(())
+    }
+
+    /// Overwrites `self.refine` with −∇g − H·Δx, H the assembled (double-precision) Hessian,
+    /// stored as its upper triangle.
+    pub(super) fn direction_residual(&mut self) {
+        negate_into(&mut self.refine, &self.free_grad);
+        subtract_product(
+            &self.col_ptr,
+            &self.row_idx32,
+            &self.values,
+            &self.dx,
+            &mut self.refine,
+        );
+    }
+
+    /// Solves H Δx = −∇g into `self.dx` by conjugate gradients preconditioned with the held
+    /// factor of H' ([`BendingFactor::Split`]), from Δx = 0, until an update is below
+    /// [`CG_TOLERANCE`] of Δx (a tenth of the Newton tolerance where smaller) and the residual
+    /// below [`CG_RESIDUAL`] of ∇g. Returns whether it got there, finite, within
+    /// [`CG_MAX_ITERATIONS`]; otherwise `self.dx` holds the last finite iterate (at worst the
+    /// preconditioned gradient, a descent direction).
+    pub(super) fn cg_direction(&mut self) -> bool {
+        let tolerance = CG_TOLERANCE.min(0.1 * self.tolerance);
+        let [mut z, mut p, mut q] = std::mem::take(&mut self.cg);
+        let mut r = std::mem::take(&mut self.refine);
+        negate_into(&mut r, &self.free_grad);
+        self.dx.fill(0.0);
+        self.precondition(&r, &mut z);
+        p.copy_from_slice(&z);
+        let mut rz = dot(&r, &z);
+        let rhs = dot(&r, &r);
+        let mut converged = false;
+        for k in 1..=CG_MAX_ITERATIONS {
+            self.cg_count[0] += 1;
+            self.hessian_product(&p, &mut q);
+            let alpha = rz / dot(&p, &q);
+            if !(alpha.is_finite() && alpha > 0.0) {
+                if k == 1 {
+                    // Breakdown at once: fall back to the preconditioned gradient.
+                    self.dx.copy_from_slice(&z);
+                }
+                break;
+            }
+            let (mut update, mut total, mut left) = (0.0, 0.0, 0.0);
+            for (((d, ri), pi), qi) in self.dx.iter_mut().zip(&mut r).zip(&p).zip(&q) {
+                *d += alpha * pi;
+                *ri -= alpha * qi;
+                update += pi * pi;
+                total += *d * *d;
+                left += *ri * *ri;
+            }
+            if alpha * alpha * update <= tolerance * tolerance * total
+                && left <= CG_RESIDUAL * CG_RESIDUAL * rhs
+            {
+                converged = total.is_finite();
+                break;
+            }
+            self.precondition(&r, &mut z);
+            let rz_next = dot(&r, &z);
+            let beta = rz_next / rz;
+            rz = rz_next;
+            for (pi, zi) in p.iter_mut().zip(&z) {
+                *pi = zi + beta * *pi;
+            }
+        }
+        self.cg_count[1] += 1;
+        self.cg = [z, p, q];
+        self.refine = r;
+        converged
+    }
+
+    /// z = H'⁻¹ r with the held factor (single or double precision).
+    pub(super) fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        let dim = r.len();
+        let stack = MemStack::new(&mut self.scratch.0);
+        if self.held_factor == Precision::Single {
+            for (b, r) in self.rhs32.iter_mut().zip(r) {
+                *b = *r as f32;
+            }
+            if let Some(split) = &mut self.split_factor {
+                split.solve(&mut self.rhs32);
+            } else {
+                let llt = LltRef::new(&self.symbolic, &self.l_values32);
+                let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
+                llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
+            }
+            for (z, c) in z.iter_mut().zip(&self.rhs32) {
+                *z = f64::from(*c);
+            }
+        } else {
+            z.copy_from_slice(r);
+            let llt = LltRef::new(&self.symbolic, &self.l_values);
+            let rhs = MatMut::from_column_major_slice_mut(z, dim, 1);
+            llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
+        }
+    }
+
+    /// out = H v: the assembled matrix H' (filtered, see [`NewtonSolver::filter_hessian`]) less
+    /// the split stencils' D, filtered the same way: S D S v, plus, at a held particle i with
+    /// normal n, the nᵀD_ii n·n nᵀ v that the filter added back.
+    pub(super) fn hessian_product(&self, v: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        subtract_product(&self.col_ptr, &self.row_idx32, &self.values, v, out);
+        for o in out.iter_mut() {
+            *o = -*o;
+        }
+        let bends = &self.sys.bends;
+        let at = |v: &[f64], i: usize| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+        let filter = |i: usize, u: DVec3| match self.held[i] {
+            Some(n) => u - n * n.dot(u),
+            None => u,
+        };
+        if let Some(s) = &self.self_contact {
+            s.add_product(v, out, filter);
+        }
+        if !self.split {
+            return;
+        }
+        for (stencil, w) in bends.v.iter().zip(&bends.w) {
+            let Some((c, d)) = opposite_split(stencil) else {
+                continue;
+            };
+            let (wc, wd) = (w[OPPOSITE.0], w[OPPOSITE.1]);
+            let (cross, a) = (wc * wd, (wc * wd).abs());
+            let (vc, vd) = (filter(c, at(v, c)), filter(d, at(v, d)));
+            let mut uc = filter(c, vc * a - vd * cross);
+            let mut ud = filter(d, vd * a - vc * cross);
+            for (i, u) in [(c, &mut uc), (d, &mut ud)] {
+                if let Some(n) = self.held[i] {
+                    *u += n * (a * n.dot(at(v, i)));
+                }
+            }
+            for (i, u) in [(c, uc), (d, ud)] {
+                out[3 * i] -= u.x;
+                out[3 * i + 1] -= u.y;
+                out[3 * i + 2] -= u.z;
+            }
+        }
+    }
+}

@@ -1,0 +1,437 @@
+//! The Hessian's sparsity pattern, laid out once, and its assembly at each iterate.
+//!
+//! The sparsity pattern never changes during a bake: the upper triangle is laid out once in
+//! compressed columns, every spring knows where its off-diagonal block lives in the value array,
+//! the symbolic factorisation (faer's supernodal/simplicial choice) is computed once, and each
+//! iteration only overwrites values and refactors numerically. The Newton loop does not allocate.
+//!
+//! Ordering: the free particles are already in a fill-reducing (nested-dissection) order
+//! ([`ReducedSystem`], [`super::factor::fill_reducing_order`]), and unknowns are interleaved per
+//! particle, so the 3n×3n matrix is factored in that block order (`SymmetricOrdering::Identity`)
+//! and no permutation is applied at each factorisation and solve.
+
+use faer::dyn_stack::{MemBuffer, StackReq};
+use faer::sparse::linalg::SupernodalThreshold;
+use glam::DVec3;
+
+use super::direction::{factor_par, Precision, Scratch};
+use super::{BendingFactor, NewtonSolver};
+use crate::cloth::law::spring_terms;
+use crate::cloth::linalg::analyse_upper_with;
+use crate::cloth::linalg::split::SplitCholesky;
+use crate::cloth::smooth::SweepScratch;
+use crate::cloth::system::{BendCoupling, ReducedSystem, OPPOSITE, PINNED};
+use crate::cloth::term::{Local, Term};
+use crate::error::{Error, Result};
+
+/// Free particles from which Newton's factor is supernodal whatever faer's flop ratio says: the
+/// Hessian's 3×3 blocks make supernodes of their own, and the dense kernels (in single
+/// precision, refined) beat the scalar simplicial factor. The robot skirt of the demo (1,560
+/// particles, simplicial by faer's rule) bakes in 13.3 s instead of 18.6; the 961-particle
+/// sheet on the ball 8 % faster per iteration; the 315-particle Fox cape alike either way.
+pub(super) const SUPERNODAL_MIN: usize = 600;
+
+/// The vertex pairs of a bending stencil, in the order of [`NewtonSolver`]'s `bend_off`.
+pub(super) const BEND_PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
+
+/// The slot of [`OPPOSITE`] in [`BEND_PAIRS`].
+pub(super) const OPPOSITE_SLOT: usize = 5;
+
+/// Where a 3×3 symmetric block's upper entries live in the value array: `col[c] + r` holds entry
+/// (r, c) for r ≤ c (diagonal blocks) or for every r (off-diagonal blocks).
+pub(super) type BlockCols = [u32; 3];
+
+/// The solver indices of a bending stencil's opposite vertices when both are free and
+/// distinct: the pairs [`BendingFactor::Split`] leaves out of the factor.
+#[inline]
+pub(super) fn opposite_split(v: &[u32; 4]) -> Option<(usize, usize)> {
+    let (c, d) = (v[OPPOSITE.0], v[OPPOSITE.1]);
+    (c != PINNED && d != PINNED && c != d).then_some((c as usize, d as usize))
+}
+
+#[inline(always)]
+pub(super) fn add_diag(values: &mut [f64], d: &BlockCols, he: &[[f64; 3]; 3]) {
+    let (d0, d1, d2) = (d[0] as usize, d[1] as usize, d[2] as usize);
+    values[d0] += he[0][0];
+    values[d1] += he[0][1];
+    values[d1 + 1] += he[1][1];
+    values[d2] += he[0][2];
+    values[d2 + 1] += he[1][2];
+    values[d2 + 2] += he[2][2];
+}
+
+/// A triangle's corner pairs, in the order of [`NewtonSolver`]'s per-triangle block slots.
+pub(super) const TRIANGLE_PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+/// Adds a three-corner term's gradient to `grad` and its Hessian blocks to the upper-triangle
+/// `values`, through each element's block slots `off` ([`TRIANGLE_PAIRS`]) and the diagonal
+/// blocks `diag`.
+pub(super) fn add_term(
+    term: &dyn Term,
+    off: &[[Option<BlockCols>; 3]],
+    diag: &[BlockCols],
+    x: &[DVec3],
+    grad: &mut [DVec3],
+    values: &mut [f64],
+) {
+    let mut local = Local::default();
+    for (e, slots) in off.iter().enumerate() {
+        term.derivatives(e, x, &mut local);
+        let v = term.vertices(e);
+        for a in 0..3 {
+            if v[a] != PINNED {
+                grad[v[a] as usize] += local.gradient[a];
+                add_diag(values, &diag[v[a] as usize], &local.hessian[a][a]);
+            }
+        }
+        for (slot, &(a, b)) in TRIANGLE_PAIRS.iter().enumerate() {
+            if let Some(o) = slots[slot] {
+                // The slot holds block (lo, hi) as column c of hi, rows r of lo.
+                let (lo, hi) = if v[a] < v[b] { (a, b) } else { (b, a) };
+                let h = &local.hessian[lo][hi];
+                for (c, &oc) in o.iter().enumerate() {
+                    for (r, row) in h.iter().enumerate() {
+                        values[oc as usize + r] += row[c];
+                    }
+                }
+            }
+        }
+    }
+}
+
+pub(super) fn index32(i: usize) -> Result<u32> {
+    u32::try_from(i).map_err(|_| Error::Factorisation(format!("Hessian too large ({i} entries)")))
+}
+
+impl NewtonSolver {
+    /// As [`NewtonSolver::new`], factoring `bending` (see [`BendingFactor`]). Either factor
+    /// works with a system in any order; one ordered with [`BendingFactor::coupling`] fills
+    /// least.
+    ///
+    /// # Errors
+    /// [`Error::Factorisation`] when the symbolic analysis fails (out of memory).
+    pub fn with_bending_factor(
+        sys: ReducedSystem,
+        tolerance: f64,
+        max_iterations: usize,
+        bending: BendingFactor,
+    ) -> Result<Self> {
+        let n = sys.len();
+        let coupling = bending.coupling();
+        let sp = &sys.springs;
+        // Lower-indexed neighbours of each particle, sorted and unique (CSR by higher end).
+        let pairs: Vec<(u32, u32)> =
+            sp.a.iter()
+                .zip(&sp.b)
+                .map(|(&a, &b)| (a, b))
+                .chain(sys.bends.pairs(coupling).map(|(a, b)| (a as u32, b as u32)))
+                .chain(sys.membrane.pairs())
+                .collect();
+        let mut start = vec![0u32; n + 1];
+        for &(a, b) in &pairs {
+            start[a.max(b) as usize + 1] += 1;
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut lower = vec![0u32; pairs.len()];
+        for &(a, b) in &pairs {
+            let hi = a.max(b) as usize;
+            lower[fill[hi] as usize] = a.min(b);
+            fill[hi] += 1;
+        }
+        drop(pairs);
+        let mut neighbours: Vec<Vec<u32>> = Vec::with_capacity(n);
+        for i in 0..n {
+            let mut list = lower[start[i] as usize..start[i + 1] as usize].to_vec();
+            list.sort_unstable();
+            list.dedup();
+            neighbours.push(list);
+        }
+        drop(lower);
+
+        // Column 3j + c: rows 3i..3i+3 for each lower neighbour i, then rows 3j..=3j+c.
+        let dim = 3 * n;
+        let mut col_ptr = Vec::with_capacity(dim + 1);
+        let mut row_idx = Vec::new();
+        let mut diag = Vec::with_capacity(n);
+        let mut col_first = Vec::with_capacity(dim);
+        col_ptr.push(0usize);
+        for (j, list) in neighbours.iter().enumerate() {
+            let mut d = [0u32; 3];
+            for (c, dc) in d.iter_mut().enumerate() {
+                col_first.push(row_idx.len());
+                for &i in list {
+                    row_idx.extend((0..3).map(|r| 3 * i as usize + r));
+                }
+                *dc = index32(row_idx.len())?;
+                row_idx.extend((0..=c).map(|r| 3 * j + r));
+                col_ptr.push(row_idx.len());
+            }
+            diag.push(d);
+        }
+        let block = |a: u32, b: u32| -> Result<BlockCols> {
+            let (lo, hi) = (a.min(b), a.max(b) as usize);
+            let p = neighbours[hi].binary_search(&lo).expect("neighbour listed");
+            let mut o = [0u32; 3];
+            for (c, oc) in o.iter_mut().enumerate() {
+                *oc = index32(col_first[3 * hi + c] + 3 * p)?;
+            }
+            Ok(o)
+        };
+        let off =
+            sp.a.iter()
+                .zip(&sp.b)
+                .map(|(&a, &b)| block(a, b))
+                .collect::<Result<Vec<_>>>()?;
+        let bend_off = sys
+            .bends
+            .v
+            .iter()
+            .map(|v| {
+                let mut out = [None; 6];
+                for (slot, (i, j)) in BEND_PAIRS.iter().enumerate() {
+                    let (a, b) = (v[*i], v[*j]);
+                    let kept = coupling == BendCoupling::All || slot != OPPOSITE_SLOT;
+                    if a != PINNED && b != PINNED && a != b && kept {
+                        out[slot] = Some(block(a, b)?);
+                    }
+                }
+                Ok(out)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let membrane_off = (0..sys.membrane.len())
+            .map(|e| {
+                let v = sys.membrane.vertices(e);
+                let mut out = [None; 3];
+                for (slot, &(a, b)) in TRIANGLE_PAIRS.iter().enumerate() {
+                    if v[a] != PINNED && v[b] != PINNED && v[a] != v[b] {
+                        out[slot] = Some(block(v[a], v[b])?);
+                    }
+                }
+                Ok(out)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        drop(neighbours);
+        let split = bending == BendingFactor::Split
+            && sys.bends.v.iter().any(|v| opposite_split(v).is_some());
+
+        let threshold = if n >= SUPERNODAL_MIN {
+            SupernodalThreshold::FORCE_SUPERNODAL
+        } else {
+            SupernodalThreshold::AUTO
+        };
+        let symbolic = analyse_upper_with(dim, &col_ptr, &row_idx, threshold)?;
+        let par = factor_par();
+        let scratch = Scratch(MemBuffer::new(StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, par),
+            symbolic.factorize_numeric_llt_scratch::<f32>(par, Default::default()),
+            symbolic.solve_in_place_scratch::<f32>(1, par),
+        ])));
+        // Single precision pays where faer's supernodal factor spends its time in dense SIMD
+        // kernels; a small system's simplicial factor is scalar code, and refinement would only
+        // add solves.
+        let supernodal = matches!(
+            symbolic.raw(),
+            faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
+        );
+        let row_idx32 = row_idx.iter().map(|&r| index32(r)).collect::<Result<_>>()?;
+        let split_factor = if split && supernodal {
+            SplitCholesky::new(&col_ptr, &row_idx, &symbolic)
+        } else {
+            None
+        };
+        // The whole single-precision factor is not needed beside the halves (a failed half
+        // falls back to double precision).
+        let single = if split_factor.is_some() { 0 } else { 1 };
+        Ok(NewtonSolver {
+            split_factor,
+            self_contact: None,
+            row_idx32,
+            values32: vec![0.0; single * row_idx.len()],
+            l_values32: vec![0.0; single * symbolic.len_val()],
+            rhs32: vec![0.0; dim],
+            refine: vec![0.0; dim],
+            held_factor: Precision::Double,
+            split,
+            cg: [vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]],
+            cg_count: [0; 2],
+            directions: [0; 2],
+            allow_single: supernodal,
+            try_single: supernodal,
+            l_values: vec![0.0; symbolic.len_val()],
+            values: vec![0.0; row_idx.len()],
+            symbolic,
+            scratch,
+            col_ptr,
+            row_idx,
+            diag,
+            off,
+            bend_off,
+            membrane_off,
+            grad: vec![DVec3::ZERO; n],
+            dx: vec![0.0; dim],
+            trial: vec![DVec3::ZERO; n],
+            longer: vec![DVec3::ZERO; n],
+            try_longer: true,
+            y: vec![DVec3::ZERO; n],
+            x0: vec![DVec3::ZERO; n],
+            history: None,
+            step_lengths: None,
+            steps: 0,
+            contact: None,
+            held: vec![None; n],
+            free_grad: vec![DVec3::ZERO; n],
+            sweeps: 0,
+            smoother: None,
+            sweep_scratch: SweepScratch::default(),
+            passes: [0; 2],
+            threads: 1,
+            tolerance,
+            max_iterations,
+            sys,
+        })
+    }
+
+    /// Stored entries of the Hessian's upper triangle.
+    pub fn hessian_nnz(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Stored entries of the Cholesky factor.
+    pub fn factor_nnz(&self) -> usize {
+        self.l_values.len()
+    }
+
+    /// True when the symbolic analysis chose a supernodal factor.
+    pub fn is_supernodal(&self) -> bool {
+        matches!(
+            self.symbolic.raw(),
+            faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
+        )
+    }
+
+    /// Assembles the Hessian at `x` and factors it numerically, as one Newton iteration does
+    /// (for benchmarks and tests).
+    ///
+    /// # Errors
+    /// [`Error::Factorisation`] when the matrix is not numerically positive definite.
+    pub fn factorize_at(&mut self, x: &[DVec3]) -> Result<()> {
+        self.y.copy_from_slice(x);
+        self.assemble(x);
+        self.factorize()
+    }
+
+    /// The Hessian at `x` as dense upper-triangle triplets (row ≤ col), for tests.
+    pub fn hessian_triplets(&mut self, x: &[DVec3]) -> Vec<(usize, usize, f64)> {
+        self.y.copy_from_slice(x);
+        self.assemble(x);
+        let mut out = Vec::with_capacity(self.values.len());
+        for c in 0..self.col_ptr.len() - 1 {
+            for p in self.col_ptr[c]..self.col_ptr[c + 1] {
+                out.push((self.row_idx[p], c, self.values[p]));
+            }
+        }
+        out
+    }
+
+    /// Writes ∇g(x) into `self.grad` and the Hessian's values into `self.values`, in one pass.
+    pub(super) fn assemble(&mut self, x: &[DVec3]) {
+        let h = self.sys.params.time_step;
+        let w = self.sys.inertia_scale() / (h * h);
+        let values = &mut self.values[..];
+        values.fill(0.0);
+        let grad = &mut self.grad[..];
+        for (i, ((g, m), d)) in grad
+            .iter_mut()
+            .zip(&self.sys.mass)
+            .zip(&self.diag)
+            .enumerate()
+        {
+            let wm = w * m;
+            *g = (x[i] - self.y[i]) * wm;
+            values[d[0] as usize] = wm;
+            values[d[1] as usize + 1] = wm;
+            values[d[2] as usize + 2] = wm;
+        }
+        let sp = &self.sys.springs;
+        let jam = self.sys.jam_strain;
+        for (s, off) in self.off.iter().enumerate() {
+            let (a, b) = (sp.a[s] as usize, sp.b[s] as usize);
+            let (f, he) = spring_terms(x[a] - x[b], sp.rest[s], sp.k[s], sp.kc[s], jam);
+            grad[a] += f;
+            grad[b] -= f;
+            add_diag(values, &self.diag[a], &he);
+            add_diag(values, &self.diag[b], &he);
+            // Off-diagonal block −H_e (symmetric, so its orientation does not matter).
+            for c in 0..3 {
+                let o = off[c] as usize;
+                values[o] -= he[0][c];
+                values[o + 1] -= he[1][c];
+                values[o + 2] -= he[2][c];
+            }
+        }
+        let an = &self.sys.anchors;
+        for i in 0..an.a.len() {
+            let a = an.a[i] as usize;
+            let (f, he) = spring_terms(x[a] - an.at[i], an.rest[i], an.k[i], an.kc[i], jam);
+            grad[a] += f;
+            add_diag(values, &self.diag[a], &he);
+        }
+        // Bending is quadratic: gradient wᵢ·(Σ wⱼxⱼ + fixed), Hessian blocks wᵢwⱼ·I.
+        let bends = &self.sys.bends;
+        for (s, pairs) in self.bend_off.iter().enumerate() {
+            let (v, w) = (&bends.v[s], &bends.w[s]);
+            let value = bends.value(s, x);
+            for i in 0..4 {
+                if v[i] != PINNED {
+                    grad[v[i] as usize] += value * w[i];
+                    let d = &self.diag[v[i] as usize];
+                    for c in 0..3 {
+                        values[d[c] as usize + c] += w[i] * w[i];
+                    }
+                }
+            }
+            for (slot, &(i, j)) in BEND_PAIRS.iter().enumerate() {
+                if let Some(o) = pairs[slot] {
+                    for c in 0..3 {
+                        values[o[c] as usize + c] += w[i] * w[j];
+                    }
+                } else if v[i] != PINNED && v[i] == v[j] {
+                    let d = &self.diag[v[i] as usize];
+                    for c in 0..3 {
+                        values[d[c] as usize + c] += 2.0 * w[i] * w[j];
+                    }
+                } else if slot == OPPOSITE_SLOT && opposite_split(v).is_some() {
+                    // Split out of the factor (BendingFactor::Split): |w_c w_d| on both
+                    // diagonals, so the factored matrix is H + D, D ≥ 0.
+                    let a = (w[i] * w[j]).abs();
+                    for p in [v[i], v[j]] {
+                        let d = &self.diag[p as usize];
+                        for c in 0..3 {
+                            values[d[c] as usize + c] += a;
+                        }
+                    }
+                }
+            }
+        }
+        add_term(
+            &self.sys.membrane,
+            &self.membrane_off,
+            &self.diag,
+            x,
+            grad,
+            values,
+        );
+        if let Some(contact) = &self.contact {
+            let diag = &self.diag;
+            contact.add_derivatives(x, grad, |i, he| add_diag(values, &diag[i], &he));
+        }
+        if let Some(s) = &mut self.self_contact {
+            let diag = &self.diag;
+            s.add_derivatives(x, grad, |i, he| add_diag(values, &diag[i], &he));
+        }
+    }
+}
