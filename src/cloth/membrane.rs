@@ -245,13 +245,13 @@ impl Membrane {
     }
 }
 
-impl Term for Membrane {
+impl Term<3> for Membrane {
     fn len(&self) -> usize {
         self.v.len()
     }
 
-    fn vertices(&self, e: usize) -> &[u32] {
-        &self.v[e]
+    fn vertices(&self, e: usize) -> [u32; 3] {
+        self.v[e]
     }
 
     fn energy(&self, e: usize, x: &[DVec3]) -> f64 {
@@ -263,7 +263,7 @@ impl Term for Membrane {
             .sum()
     }
 
-    fn derivatives(&self, e: usize, x: &[DVec3], local: &mut Local) {
+    fn derivatives(&self, e: usize, x: &[DVec3], local: &mut Local<3>) {
         *local = Local::default();
         for k in 0..3 {
             let r = self.fibre(e, k, x);

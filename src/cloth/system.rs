@@ -16,12 +16,12 @@
 
 use glam::DVec3;
 
-use super::law::{spring_energy, spring_gradient};
+use super::law::spring_gradient;
 use super::linalg::fill_reducing_order;
 use super::material::{from_frame, hinge_frame};
 use super::membrane::Membrane;
 use super::model::ClothModel;
-use super::term::Term;
+use super::term::{self, Bending, Inertia, Springs, Term};
 use crate::error::Result;
 
 /// Time stepping constants shared by the solvers.
@@ -421,33 +421,38 @@ impl ReducedSystem {
 
     /// The objective g(x) = s/(2h²)‖x − y‖²_M + E(x), in joules.
     pub fn objective(&self, x: &[DVec3], y: &[DVec3]) -> f64 {
+        self.inertia_term(y).total_energy(x)
+            + self.spring_term().total_energy(x)
+            + self.anchor_term().total_energy(x)
+            + Bending(&self.bends).total_energy(x)
+            + self.membrane.total_energy(x)
+    }
+
+    /// The inertia towards the targets `y` as a term ([`Inertia`]).
+    pub fn inertia_term<'a>(&'a self, y: &'a [DVec3]) -> Inertia<'a> {
         let h = self.params.time_step;
-        let w = self.inertia_scale() / (2.0 * h * h);
-        let inertia: f64 = x
-            .iter()
-            .zip(y)
-            .zip(&self.mass)
-            .map(|((x, y), m)| w * m * x.distance_squared(*y))
-            .sum();
-        let s = &self.springs;
-        let spring: f64 = (0..s.a.len())
-            .map(|i| {
-                let len = x[s.a[i] as usize].distance(x[s.b[i] as usize]);
-                spring_energy(len, s.rest[i], s.k[i], s.kc[i], self.jam_strain)
-            })
-            .sum();
-        let an = &self.anchors;
-        let anchor: f64 = (0..an.a.len())
-            .map(|i| {
-                let len = x[an.a[i] as usize].distance(an.at[i]);
-                spring_energy(len, an.rest[i], an.k[i], an.kc[i], self.jam_strain)
-            })
-            .sum();
-        let b = &self.bends;
-        let bend: f64 = (0..b.len())
-            .map(|s| 0.5 * b.value(s, x).length_squared())
-            .sum();
-        inertia + spring + anchor + bend + self.membrane.total_energy(x)
+        Inertia {
+            mass: &self.mass,
+            target: y,
+            weight: self.inertia_scale() / (h * h),
+            half_weight: self.inertia_scale() / (2.0 * h * h),
+        }
+    }
+
+    /// The springs between free particles as a term ([`Springs`]).
+    pub fn spring_term(&self) -> Springs<'_> {
+        Springs {
+            set: &self.springs,
+            jam: self.jam_strain,
+        }
+    }
+
+    /// The springs to pinned points as a term ([`term::Anchors`]).
+    pub fn anchor_term(&self) -> term::Anchors<'_> {
+        term::Anchors {
+            set: &self.anchors,
+            jam: self.jam_strain,
+        }
     }
 
     /// The gradient ∇g(x) (newtons), written into `grad`.

@@ -164,11 +164,11 @@ pub struct NewtonSolver {
     /// Per free particle: its diagonal block's columns.
     diag: Vec<BlockCols>,
     /// Per free spring: its off-diagonal block's columns (rows of the lower-indexed end).
-    off: Vec<BlockCols>,
+    off: Vec<[Option<BlockCols>; 1]>,
     /// Per bending stencil and vertex pair (0,1), (0,2), (0,3), (1,2), (1,3), (2,3): the pair's
     /// off-diagonal block, `None` where either vertex is pinned or both are the same particle.
     bend_off: Vec<[Option<BlockCols>; 6]>,
-    /// Per membrane triangle and corner pair [`TRIANGLE_PAIRS`]: the pair's off-diagonal block,
+    /// Per membrane triangle and corner pair ([`pattern::pair_slots`]): the pair's off-diagonal block,
     /// `None` where either corner is pinned.
     membrane_off: Vec<[Option<BlockCols>; 3]>,
     symbolic: SymbolicCholesky<usize>,

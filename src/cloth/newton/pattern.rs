@@ -16,7 +16,6 @@ use glam::DVec3;
 
 use super::direction::{factor_par, Precision, Scratch};
 use super::{BendingFactor, NewtonSolver};
-use crate::cloth::law::spring_terms;
 use crate::cloth::linalg::analyse_upper_with;
 use crate::cloth::linalg::split::SplitCholesky;
 use crate::cloth::smooth::SweepScratch;
@@ -60,40 +59,67 @@ pub(super) fn add_diag(values: &mut [f64], d: &BlockCols, he: &[[f64; 3]; 3]) {
     values[d2 + 2] += he[2][2];
 }
 
-/// A triangle's corner pairs, in the order of [`NewtonSolver`]'s per-triangle block slots.
-pub(super) const TRIANGLE_PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+/// The block slots of an element's corner pairs (a, b), a < b, in order ((0, 1), (0, 2), …,
+/// (1, 2), …: the order [`add_term`] reads them in), `None` where either corner is pinned or
+/// both are the same particle. `P` is N(N − 1)/2.
+pub(super) fn pair_slots<const N: usize, const P: usize>(
+    v: [u32; N],
+    block: impl Fn(u32, u32) -> Result<BlockCols>,
+) -> Result<[Option<BlockCols>; P]> {
+    let mut out = [None; P];
+    let mut slot = 0;
+    for a in 0..N {
+        for b in a + 1..N {
+            if v[a] != PINNED && v[b] != PINNED && v[a] != v[b] {
+                out[slot] = Some(block(v[a], v[b])?);
+            }
+            slot += 1;
+        }
+    }
+    Ok(out)
+}
 
-/// Adds a three-corner term's gradient to `grad` and its Hessian blocks to the upper-triangle
-/// `values`, through each element's block slots `off` ([`TRIANGLE_PAIRS`]) and the diagonal
-/// blocks `diag`.
-pub(super) fn add_term(
-    term: &dyn Term,
-    off: &[[Option<BlockCols>; 3]],
+/// Adds a term's gradient to `grad` and its Hessian blocks to the upper-triangle `values`,
+/// element by element, through each element's pair slots `off` ([`pair_slots`]; empty for a
+/// one-corner term) and the diagonal blocks `diag`. Monomorphic per term, so each term's
+/// kernel inlines here.
+#[inline]
+pub(super) fn add_term<const N: usize, const P: usize>(
+    term: &impl Term<N>,
+    off: &[[Option<BlockCols>; P]],
     diag: &[BlockCols],
     x: &[DVec3],
     grad: &mut [DVec3],
     values: &mut [f64],
 ) {
-    let mut local = Local::default();
-    for (e, slots) in off.iter().enumerate() {
+    let mut local = Local::<N>::default();
+    for e in 0..term.len() {
         term.derivatives(e, x, &mut local);
         let v = term.vertices(e);
-        for a in 0..3 {
+        for a in 0..N {
             if v[a] != PINNED {
                 grad[v[a] as usize] += local.gradient[a];
                 add_diag(values, &diag[v[a] as usize], &local.hessian[a][a]);
             }
         }
-        for (slot, &(a, b)) in TRIANGLE_PAIRS.iter().enumerate() {
-            if let Some(o) = slots[slot] {
-                // The slot holds block (lo, hi) as column c of hi, rows r of lo.
-                let (lo, hi) = if v[a] < v[b] { (a, b) } else { (b, a) };
-                let h = &local.hessian[lo][hi];
-                for (c, &oc) in o.iter().enumerate() {
-                    for (r, row) in h.iter().enumerate() {
-                        values[oc as usize + r] += row[c];
+        // A one-corner term has no pairs (and `off` is empty).
+        let Some(slots) = off.get(e) else {
+            continue;
+        };
+        let mut slot = 0;
+        for a in 0..N {
+            for b in a + 1..N {
+                if let Some(o) = slots[slot] {
+                    // The slot holds block (lo, hi) as column c of hi, rows r of lo.
+                    let (lo, hi) = if v[a] < v[b] { (a, b) } else { (b, a) };
+                    let h = &local.hessian[lo][hi];
+                    for (c, &oc) in o.iter().enumerate() {
+                        for (r, row) in h.iter().enumerate() {
+                            values[oc as usize + r] += row[c];
+                        }
                     }
                 }
+                slot += 1;
             }
         }
     }
@@ -180,11 +206,9 @@ impl NewtonSolver {
             }
             Ok(o)
         };
-        let off =
-            sp.a.iter()
-                .zip(&sp.b)
-                .map(|(&a, &b)| block(a, b))
-                .collect::<Result<Vec<_>>>()?;
+        let off = (0..sys.springs.a.len())
+            .map(|e| pair_slots(sys.spring_term().vertices(e), block))
+            .collect::<Result<Vec<_>>>()?;
         let bend_off = sys
             .bends
             .v
@@ -202,16 +226,7 @@ impl NewtonSolver {
             })
             .collect::<Result<Vec<_>>>()?;
         let membrane_off = (0..sys.membrane.len())
-            .map(|e| {
-                let v = sys.membrane.vertices(e);
-                let mut out = [None; 3];
-                for (slot, &(a, b)) in TRIANGLE_PAIRS.iter().enumerate() {
-                    if v[a] != PINNED && v[b] != PINNED && v[a] != v[b] {
-                        out[slot] = Some(block(v[a], v[b])?);
-                    }
-                }
-                Ok(out)
-            })
+            .map(|e| pair_slots(sys.membrane.vertices(e), block))
             .collect::<Result<Vec<_>>>()?;
         drop(neighbours);
         let split = bending == BendingFactor::Split
@@ -339,47 +354,21 @@ impl NewtonSolver {
 
     /// Writes ∇g(x) into `self.grad` and the Hessian's values into `self.values`, in one pass.
     pub(super) fn assemble(&mut self, x: &[DVec3]) {
-        let h = self.sys.params.time_step;
-        let w = self.sys.inertia_scale() / (h * h);
         let values = &mut self.values[..];
         values.fill(0.0);
         let grad = &mut self.grad[..];
-        for (i, ((g, m), d)) in grad
-            .iter_mut()
-            .zip(&self.sys.mass)
-            .zip(&self.diag)
-            .enumerate()
-        {
-            let wm = w * m;
-            *g = (x[i] - self.y[i]) * wm;
-            values[d[0] as usize] = wm;
-            values[d[1] as usize + 1] = wm;
-            values[d[2] as usize + 2] = wm;
-        }
-        let sp = &self.sys.springs;
-        let jam = self.sys.jam_strain;
-        for (s, off) in self.off.iter().enumerate() {
-            let (a, b) = (sp.a[s] as usize, sp.b[s] as usize);
-            let (f, he) = spring_terms(x[a] - x[b], sp.rest[s], sp.k[s], sp.kc[s], jam);
-            grad[a] += f;
-            grad[b] -= f;
-            add_diag(values, &self.diag[a], &he);
-            add_diag(values, &self.diag[b], &he);
-            // Off-diagonal block −H_e (symmetric, so its orientation does not matter).
-            for c in 0..3 {
-                let o = off[c] as usize;
-                values[o] -= he[0][c];
-                values[o + 1] -= he[1][c];
-                values[o + 2] -= he[2][c];
-            }
-        }
-        let an = &self.sys.anchors;
-        for i in 0..an.a.len() {
-            let a = an.a[i] as usize;
-            let (f, he) = spring_terms(x[a] - an.at[i], an.rest[i], an.k[i], an.kc[i], jam);
-            grad[a] += f;
-            add_diag(values, &self.diag[a], &he);
-        }
+        grad.fill(DVec3::ZERO);
+        let (diag, no_pairs) = (&self.diag[..], &[] as &[[Option<BlockCols>; 0]]);
+        add_term(
+            &self.sys.inertia_term(&self.y),
+            no_pairs,
+            diag,
+            x,
+            grad,
+            values,
+        );
+        add_term(&self.sys.spring_term(), &self.off, diag, x, grad, values);
+        add_term(&self.sys.anchor_term(), no_pairs, diag, x, grad, values);
         // Bending is quadratic: gradient wᵢ·(Σ wⱼxⱼ + fixed), Hessian blocks wᵢwⱼ·I.
         let bends = &self.sys.bends;
         for (s, pairs) in self.bend_off.iter().enumerate() {
@@ -420,7 +409,7 @@ impl NewtonSolver {
         add_term(
             &self.sys.membrane,
             &self.membrane_off,
-            &self.diag,
+            diag,
             x,
             grad,
             values,
