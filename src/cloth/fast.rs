@@ -14,7 +14,7 @@
 //! δ shrinks with δ. Systems too ill-conditioned for an f32 factor keep an f64 one (see
 //! [`FastSolver::new`]).
 //!
-//! With colliders (see [`contact`]) the residual of a particle resting on one gets the collider's
+//! With colliders (see [`reaction`]) the residual of a particle resting on one gets the collider's
 //! reaction and Coulomb friction, the held directions are filtered out of the correction (solved
 //! then by conjugate gradients preconditioned with Ã), and particles that entered a collider are
 //! moved back out after each correction.
@@ -269,7 +269,7 @@ impl FastSolver {
         upper_from_triplets(n, &triplets)
     }
 
-    /// Adds colliders (see [`contact`]).
+    /// Adds colliders (see [`reaction`]).
     pub fn with_colliders(mut self, colliders: Option<Colliders>) -> Self {
         let n = if colliders.is_some() {
             self.sys.len()

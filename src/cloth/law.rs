@@ -1,8 +1,8 @@
 //! The fabric's one-dimensional law, written once: a spring's tension f(|r|) with its toe in
 //! tension, its soft compression and its jamming ramp ([`spring_response`]), the energy it
 //! derives from ([`spring_energy`]), its gradient and projected Hessian block
-//! ([`spring_terms`]), and the same law in the form the local/global method's residual
-//! evaluates it, scalar and AVX2 side by side ([`JamRamps`], `springs_scalar`, `springs_avx2`,
+//! (`spring_terms`), and the same law in the form the local/global method's residual
+//! evaluates it, scalar and AVX2 side by side (`JamRamps`, `springs_scalar`, `springs_avx2`,
 //! tested to give the same bits). The springs, the membrane's fibres and every solver take it
 //! from here.
 

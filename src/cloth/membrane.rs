@@ -7,7 +7,7 @@
 //! continuum through it, 60° apart in its own rest plane. A fibre's
 //! direction d (a unit vector of the rest plane) is stretched to r = F·d, with F the triangle's
 //! deformation gradient: a fixed combination r = Σᵢ wᵢ xᵢ of the corners (Σ wᵢ = 0, |r| = 1 at
-//! rest), the first along the fabric's warp ([`warp`]). Each fibre stores the fabric's one-dimensional law of [`spring_response`] in strain
+//! rest), the first along the fabric's warp ([`warp`]). Each fibre stores the fabric's one-dimensional law of [`spring_response`](super::law::spring_response) in strain
 //! units (a toe in tension, a soft compression that jams), scaled by the triangle's area:
 //!
 //! ```text

@@ -3,6 +3,19 @@
 //! Data flows one way: [`ClothModel`] (particles, springs, masses, pins) → [`ReducedSystem`]
 //! (pins removed, unknowns ordered) → a [`StepSolver`] (with its [`collide::Colliders`]) →
 //! [`simulate`] (which adds the [`wind`] before each step) records a [`FrameCache`].
+//!
+//! The layers, each using only those below it:
+//! - the model: [`model`], [`springs`], [`material`], [`pins`], [`preset`];
+//! - the step's objective: [`system`] (the reduced unknowns), the fabric's one-dimensional
+//!   [`law`], and its energy terms in [`term`] (inertia, springs, anchors, bending) and
+//!   [`membrane`], each with its value, gradient and projected Hessian blocks, checked by one
+//!   finite-difference test; contact with colliders ([`collide`]) and with itself
+//!   ([`self_contact`], distances in [`proximity`]);
+//! - the solvers: [`newton`] (Newton's method, its pattern, direction and contact glue in
+//!   their own files), [`fast`] (the local/global method) and [`smooth`] (the Gauss–Seidel
+//!   sweeps);
+//! - the linear algebra they share: `linalg` (sparse Cholesky factors, fill-reducing orders,
+//!   the factor in two halves on two threads, the thread hand-off).
 
 pub mod collide;
 pub mod drive;

@@ -7,6 +7,8 @@ use glam::DVec3;
 
 /// A collider's surface near a particle as its tangent plane, for evaluating the barrier while
 /// the particle moves a little ([`NewtonContact::barrier_planes`]).
+///
+/// [`NewtonContact::barrier_planes`]: super::contact::NewtonContact::barrier_planes
 #[derive(Debug, Clone, Copy)]
 pub struct BarrierPlane {
     /// Unit normal, towards the free side.

@@ -33,9 +33,9 @@
 //! (h²k/m ≈ 10⁵) it can then reach the iteration cap, which the step reports as not converged.
 
 //!
-//! The parts: [`pattern`] lays out the Hessian's sparsity pattern once and assembles it;
-//! [`direction`] factors it and solves for the Newton direction (single precision refined,
-//! or conjugate gradients on the split factor); [`contact`] holds particles on the colliders
+//! The parts: `pattern` lays out the Hessian's sparsity pattern once and assembles it;
+//! `direction` factors it and solves for the Newton direction (single precision refined,
+//! or conjugate gradients on the split factor); `contact` holds particles on the colliders
 //! and makes a step's start feasible; this module runs the iterations and the line search.
 
 mod contact;
@@ -105,7 +105,7 @@ const ROUNDOFF: f64 = 1e-12;
 /// block moved onto the two diagonals, so the pattern loses it, and D is positive
 /// semi-definite, so H' ≥ H stays definite. The Newton direction still solves H Δx = −∇g, by
 /// conjugate gradients preconditioned with the factor of H': the preconditioned matrix
-/// H'⁻¹H has its eigenvalues in (0, 1], and about six gradients reach [`CG_TOLERANCE`] on the
+/// H'⁻¹H has its eigenvalues in (0, 1], and about six gradients reach `CG_TOLERANCE` (`direction.rs`) on the
 /// garments.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum BendingFactor {
