@@ -35,8 +35,10 @@ use super::term::Term;
 
 /// Models with fewer free particles than this are swept in solver order, on one thread: below
 /// it a sweep takes about as long as starting a thread (a sweep of the 8k-vertex skirt takes
-/// about 1.5 ms, a thread tens of microseconds).
-const PARALLEL_MIN: usize = 2048;
+/// about 1.5 ms, a thread tens of microseconds). From it, the split order (on one thread or
+/// two): the demo's robot skirt (1,560 particles) alone on two threads bakes in 0.80× the wall
+/// time it takes swept in solver order (`farm-bench -n 3 --vs`, side by side).
+const PARALLEL_MIN: usize = 1024;
 
 /// The terms of g each free particle appears in, as compressed lists per particle (particle i's
 /// entries are `start[i]..start[i + 1]`), in the smoother's own order of particles and stencils.
