@@ -179,7 +179,23 @@ pub struct Simulation {
 /// # Errors
 /// When the system cannot be ordered or factored.
 pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn StepSolver>> {
-    let colliders = (!params.colliders.is_empty()).then(|| params.colliders.clone());
+    make_driven_solver(model, params, None)
+}
+
+/// As [`make_solver`], for a bake whose collider `body` (an index into `params.colliders`, the
+/// last one: a mesh) moves between frames. With self-contact and Newton, that body moves within
+/// each step instead of between steps: it is one of self-contact's obstacles, pushing the cloth
+/// along as it goes ([`NewtonSolver::with_body_within_steps`]), and leaves the colliders'
+/// barrier (so it has no friction).
+///
+/// # Errors
+/// As [`make_solver`].
+pub fn make_driven_solver(
+    model: &ClothModel,
+    params: &BakeParams,
+    body: Option<usize>,
+) -> Result<Box<dyn StepSolver>> {
+    let mut colliders = (!params.colliders.is_empty()).then(|| params.colliders.clone());
     let step = params.step_params();
     Ok(match params.solver {
         SolverKind::Fast => Box::new(
@@ -190,13 +206,27 @@ pub fn make_solver(model: &ClothModel, params: &BakeParams) -> Result<Box<dyn St
         SolverKind::Newton => {
             let sys =
                 ReducedSystem::with_coupling(model, step, BendingFactor::default().coupling())?;
-            let self_contact = params.self_contact.map(|layer| {
-                self_contact::SelfContact::new(model, &sys, layer).with_obstacles(&params.colliders)
+            let within = body.filter(|&j| {
+                params.self_contact.is_some()
+                    && j + 1 == params.colliders.shapes.len()
+                    && matches!(params.colliders.shapes[j], collide::Collider::Mesh(_))
             });
+            let self_contact = params.self_contact.map(|layer| {
+                self_contact::SelfContact::new(model, &sys, layer)
+                    .with_obstacles(&params.colliders)
+                    .moving_obstacles(within.is_some())
+            });
+            if let (Some(j), Some(c)) = (within, &mut colliders) {
+                c.shapes.truncate(j);
+                if c.shapes.is_empty() {
+                    colliders = None;
+                }
+            }
             Box::new(
                 NewtonSolver::new(sys, params.tolerance, params.max_newton)?
                     .with_colliders(colliders)
                     .with_self_contact(self_contact)
+                    .with_body_within_steps(within)
                     .with_sweeps(params.sweeps)
                     .with_threads(params.threads),
             )

@@ -960,7 +960,7 @@ pub(crate) fn simulate_on_body(
         }
         _ => None,
     };
-    let mut solver = make_solver(model, params)?;
+    let mut solver = crate::cloth::make_driven_solver(model, params, body_shape)?;
     let sim = crate::cloth::simulate_driven(
         model,
         solver.as_mut(),

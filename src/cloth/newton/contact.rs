@@ -207,6 +207,10 @@ impl NewtonSolver {
                 }
                 break;
             }
+            // A body moving within the step comes from where it was at x₀: a start cut short
+            // of where it was going would leave the pair that cut it at its band's bottom, in the
+            // body's way; x₀ itself leaves every pair where the last step did.
+            let t = if self.body_within.is_some() { 0.0 } else { t };
             for (p, a) in x.iter_mut().zip(&x0) {
                 *p = *a + (*p - *a) * t;
             }

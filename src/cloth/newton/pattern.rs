@@ -264,6 +264,7 @@ impl NewtonSolver {
         Ok(NewtonSolver {
             split_factor,
             self_contact: None,
+            body_within: None,
             row_idx32,
             values32: vec![0.0; single * row_idx.len()],
             l_values32: vec![0.0; single * symbolic.len_val()],

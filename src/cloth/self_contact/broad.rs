@@ -104,8 +104,14 @@ pub(super) fn cells(b: &Aabb, cell: f64) -> impl Iterator<Item = u64> {
 impl SelfContact {
     /// Bins primitives' grown swept boxes into the grid and collects the candidate pairs.
     pub(super) fn find_pairs(&mut self, a: &[DVec3], b: &[DVec3], cell: f64) {
+        let span = self.path_span;
+        let first = self.obstacles.first().map_or(usize::MAX, |o| o.1 as usize);
         for (v, e) in self.ends.iter_mut().enumerate() {
             *e = match self.slot[v] {
+                PINNED if span > 0.0 && v >= first && v < self.obstacle_to.len() => {
+                    let f = self.fixed[v];
+                    (f, f + (self.obstacle_to[v] - f) * span)
+                }
                 PINNED => (self.fixed[v], self.fixed[v]),
                 s => (a[s as usize], b[s as usize]),
             };

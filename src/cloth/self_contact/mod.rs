@@ -33,6 +33,15 @@
 //! own barrier). Their vertices are fixed within a step, as pins are, so a body's sharp edge
 //! cannot pass between two particles through the cloth's triangles.
 //!
+//! **A moving body** ([`SelfContact::moving_obstacles`]) moves within each step instead: the
+//! step starts with it where the last one ended, where the cloth was kept off it, and pushes
+//! ([`SelfContact::add_drag`], [`SelfContact::commit_obstacles`]) take it on towards where it
+//! is going, the cloth along with it, each as far as additive CCD over both motions allows
+//! ([`SelfContact::set_path_span`]). A body that jumps between steps instead lands on cloth it
+//! would have had to pass through: the pairs it lands next to thin to micrometres and hold the
+//! cloth on the wrong side of its edges, and Newton's steps stall against them
+//! (`docs/cloth.md`, "A moving body").
+//!
 //! **Broad phase.** A uniform grid over the pairs' swept boxes from one iterate to the farthest
 //! point a search may try, each box grown by half the band's top, so every pair that can come
 //! within its band on the way is a candidate ([`SelfContact::prepare_path`]). Triangles and
@@ -68,6 +77,9 @@ const CCD_GAP: f64 = 0.1;
 /// draped dress a pair found 7 nm apart got a 4.5 nm layer, the kicking body pressed it a
 /// decade of u per Newton iteration, and at 7.6e18 N/m the Hessian no longer factored.
 const TOUCHING: f64 = 1e-2;
+
+/// Obstacles moving within a step are taken to have arrived this close to their goal, in layers.
+const ARRIVED: f64 = 1e-2;
 
 /// How much of the distance a pair may cover safely each additive-CCD round advances by.
 const CCD_ADVANCE: f64 = 0.9;
@@ -111,6 +123,9 @@ struct Active {
     normal: DVec3,
     /// c·β″(u)/ℓ, N/m.
     stiffness: f64,
+    /// Σ w_k (n·(goal − position)) n over the pair's obstacle vertices, m (zero when none
+    /// moves): the normal part of their remaining motion, weighted as the separation weighs them.
+    drag: DVec3,
 }
 
 /// Self-contact of one cloth (see the module documentation).
@@ -155,6 +170,17 @@ pub struct SelfContact {
     /// The mesh colliders whose vertices, edges and triangles join the pairs
     /// ([`SelfContact::with_obstacles`]): collider index, first vertex, vertex count.
     obstacles: Vec<(usize, u32, u32)>,
+    /// Where the obstacles' vertices go within the step (model order, empty unless they
+    /// move with the step: [`SelfContact::moving_obstacles`]).
+    obstacle_to: Vec<DVec3>,
+    /// Where they were at the last committed iterate.
+    obstacle_from: Vec<DVec3>,
+    /// Whether the obstacles are still on their way.
+    obstacles_moving: bool,
+    /// The fraction of their remaining way the obstacles move along a path being prepared.
+    path_span: f64,
+    /// Whether obstacles move within the step (else they jump between steps).
+    move_within: bool,
 }
 
 impl SelfContact {
@@ -201,6 +227,11 @@ impl SelfContact {
             threads: 1,
             stamp2: Vec::new(),
             pairs2: Vec::new(),
+            obstacle_to: Vec::new(),
+            obstacle_from: Vec::new(),
+            obstacles_moving: false,
+            path_span: 0.0,
+            move_within: false,
         }
     }
 
@@ -260,8 +291,99 @@ impl SelfContact {
     pub fn move_obstacle(&mut self, j: usize, positions: &[DVec3]) {
         if let Some(&(_, first, count)) = self.obstacles.iter().find(|o| o.0 == j) {
             debug_assert_eq!(positions.len(), count as usize);
-            let first = first as usize;
-            self.fixed[first..first + count as usize].copy_from_slice(positions);
+            let range = first as usize..(first + count) as usize;
+            if self.move_within {
+                self.obstacle_to.resize(self.fixed.len(), DVec3::ZERO);
+                self.obstacle_from.resize(self.fixed.len(), DVec3::ZERO);
+                self.obstacle_to[range.clone()].copy_from_slice(positions);
+                let from = self.fixed[range.clone()].to_vec();
+                self.obstacle_from[range].copy_from_slice(&from);
+                self.obstacles_moving = true;
+                self.ready = false;
+            } else {
+                self.fixed[range].copy_from_slice(positions);
+            }
+        }
+    }
+
+    /// Moves the obstacles within each step, from where they were to where
+    /// [`SelfContact::move_obstacle`] puts them, along with the cloth's iterates
+    /// ([`SelfContact::set_obstacle_fraction`]), instead of between steps.
+    pub fn moving_obstacles(mut self, on: bool) -> Self {
+        self.move_within = on;
+        self
+    }
+
+    /// Whether the obstacles are still on their way within the step.
+    pub fn obstacles_moving(&self) -> bool {
+        self.obstacles_moving
+    }
+
+    /// Paths prepared from now on move the obstacles `span` of their remaining way too.
+    pub fn set_path_span(&mut self, span: f64) {
+        self.path_span = if self.obstacles_moving { span } else { 0.0 };
+    }
+
+    /// Puts the obstacles `alpha` of the way from their committed positions to their goal.
+    pub fn set_obstacle_fraction(&mut self, alpha: f64) {
+        if !self.obstacles_moving {
+            return;
+        }
+        for v in self.obstacle_range() {
+            self.fixed[v] =
+                self.obstacle_from[v] + (self.obstacle_to[v] - self.obstacle_from[v]) * alpha;
+        }
+    }
+
+    /// Commits the obstacles `alpha` of the way (1: they arrived).
+    pub fn commit_obstacles(&mut self, alpha: f64) {
+        if !self.obstacles_moving {
+            return;
+        }
+        if alpha >= 1.0 {
+            for v in self.obstacle_range() {
+                self.fixed[v] = self.obstacle_to[v];
+            }
+            self.obstacles_moving = false;
+        } else {
+            self.set_obstacle_fraction(alpha);
+            let mut left: f64 = 0.0;
+            for v in self.obstacle_range() {
+                self.obstacle_from[v] = self.fixed[v];
+                left = left.max(self.fixed[v].distance(self.obstacle_to[v]));
+            }
+            // Within a hundredth of the layer of their goal, the obstacles are there.
+            if left <= ARRIVED * self.layer {
+                self.obstacles_moving = false;
+            }
+        }
+        self.ready = false;
+    }
+
+    /// Adds to `rhs` (solver order) the barrier Hessian's blocks between the cloth and the
+    /// obstacles times the obstacles' remaining motion, over the pairs in their bands at the
+    /// last assembled iterate: how the cloth is dragged along.
+    pub fn add_drag(&self, rhs: &mut [DVec3]) {
+        for a in &self.active {
+            if a.drag == DVec3::ZERO {
+                continue;
+            }
+            for (&i, &w) in a.free.iter().zip(&a.weights) {
+                if i != PINNED {
+                    rhs[i as usize] += a.drag * (a.stiffness * w);
+                }
+            }
+        }
+    }
+
+    fn is_obstacle(&self, v: usize) -> bool {
+        self.obstacles.first().is_some_and(|o| v >= o.1 as usize)
+    }
+
+    fn obstacle_range(&self) -> std::ops::Range<usize> {
+        match self.obstacles.first() {
+            Some(o) => o.1 as usize..self.fixed.len(),
+            None => 0..0,
         }
     }
 
@@ -379,16 +501,27 @@ impl SelfContact {
             .map(|(p, q)| (*q - *p).length_squared())
             .fold(0.0, f64::max)
             .sqrt();
+        let span = self.path_span;
+        let longest = if span > 0.0 {
+            self.obstacle_range()
+                .map(|v| self.fixed[v].distance(self.obstacle_to[v]) * span)
+                .fold(longest, f64::max)
+        } else {
+            longest
+        };
         let limit = MAX_PATH_CELLS * self.cell;
         let cell = self.cell.max(longest.min(limit) / SWEPT_CELLS);
         if longest <= limit {
             return self.prepare_segment(a, b, cell);
         }
         let cut = limit / longest;
+        // The obstacles' part of the path is cut alike.
+        self.path_span = span * cut;
         let mut end = std::mem::take(&mut self.cut_end);
         end.clear();
         end.extend(a.iter().zip(b).map(|(p, q)| *p + (*q - *p) * cut));
         let toi = self.prepare_segment(a, &end, cell);
+        self.path_span = span;
         self.cut_end = end;
         cut * toi
     }
@@ -408,7 +541,7 @@ impl SelfContact {
                 if pair.layer == 0.0 {
                     return true;
                 }
-                let (near, t) = self.pair_toi(pair, a, b, toi);
+                let (near, t) = self.pair_toi(pair, toi);
                 toi = toi.min(t);
                 near
             });
@@ -430,11 +563,12 @@ impl SelfContact {
         toi
     }
 
-    /// Whether `pair` can come within its band on the path from `a` to `b`, and its
-    /// conservative time of impact there (1 when none), looking no farther than `limit`.
-    fn pair_toi(&self, pair: &Pair, a: &[DVec3], b: &[DVec3], limit: f64) -> (bool, f64) {
-        let p0 = self.positions(pair, a);
-        let p1 = self.positions(pair, b);
+    /// Whether `pair` can come within its band on the path [`SelfContact::find_pairs`] last
+    /// looked along (its vertices' ends), and its conservative time of impact there (1 when
+    /// none), looking no farther than `limit`.
+    fn pair_toi(&self, pair: &Pair, limit: f64) -> (bool, f64) {
+        let p0 = pair.v.map(|v| self.ends[v as usize].0);
+        let p1 = pair.v.map(|v| self.ends[v as usize].1);
         let d: [DVec3; 4] = std::array::from_fn(|k| p1[k] - p0[k]);
         let mean = (d[0] + d[1] + d[2] + d[3]) * 0.25;
         let len = |k: usize| (d[k] - mean).length();
@@ -541,11 +675,21 @@ impl SelfContact {
                     std::array::from_fn(|r| std::array::from_fn(|col| c * n[r] * n[col])),
                 );
             }
+            let mut drag = DVec3::ZERO;
+            if self.obstacles_moving {
+                for ((&v, &f), &w) in pair.v.iter().zip(&free).zip(&s.weights) {
+                    let v = v as usize;
+                    if f == PINNED && v < self.obstacle_to.len() && self.is_obstacle(v) {
+                        drag += n * (w * n.dot(self.obstacle_to[v] - self.fixed[v]));
+                    }
+                }
+            }
             active.push(Active {
                 free,
                 weights: s.weights,
                 normal: n,
                 stiffness,
+                drag,
             });
         }
         let count = active.len();
