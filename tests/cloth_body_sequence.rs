@@ -59,34 +59,44 @@ fn write_sequence(dir: &Path) -> PathBuf {
     dir.join("box%d.obj")
 }
 
-/// A 0.4 m square sheet, 9 × 9 vertices, lying a thickness above the box's starting top.
-fn write_sheet(dir: &Path) -> PathBuf {
+/// Writes `dir/NAME.obj`: one 0.4 m square sheet, 9 × 9 vertices, at each of the `heights`
+/// (m), one above the other over the box's top.
+fn write_layers(dir: &Path, name: &str, heights: &[f64]) -> PathBuf {
     let n = 9;
     let mut s = String::new();
-    for j in 0..n {
-        for i in 0..n {
-            let (x, z) = (
-                -0.2 + 0.4 * i as f64 / (n - 1) as f64,
-                -0.2 + 0.4 * j as f64 / (n - 1) as f64,
-            );
-            s += &format!("v {x} {THICKNESS} {z}\n");
+    for y in heights {
+        for j in 0..n {
+            for i in 0..n {
+                let (x, z) = (
+                    -0.2 + 0.4 * i as f64 / (n - 1) as f64,
+                    -0.2 + 0.4 * j as f64 / (n - 1) as f64,
+                );
+                s += &format!("v {x} {y} {z}\n");
+            }
         }
     }
-    for j in 0..n - 1 {
-        for i in 0..n - 1 {
-            let a = j * n + i + 1;
-            s += &format!(
-                "f {a} {} {}\nf {a} {} {}\n",
-                a + n,
-                a + n + 1,
-                a + n + 1,
-                a + 1
-            );
+    for layer in 0..heights.len() {
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = layer * n * n + j * n + i + 1;
+                s += &format!(
+                    "f {a} {} {}\nf {a} {} {}\n",
+                    a + n,
+                    a + n + 1,
+                    a + n + 1,
+                    a + 1
+                );
+            }
         }
     }
-    let path = dir.join("sheet.obj");
+    let path = dir.join(format!("{name}.obj"));
     std::fs::write(&path, s).unwrap();
     path
+}
+
+/// A 0.4 m square sheet, 9 × 9 vertices, lying a thickness above the box's starting top.
+fn write_sheet(dir: &Path) -> PathBuf {
+    write_layers(dir, "sheet", &[THICKNESS])
 }
 
 fn job(dir: &Path, pattern: PathBuf, output: &Path) -> ClothJob {
@@ -415,41 +425,6 @@ fn a_body_from_a_morph_animated_gltf_moves_as_its_sequence() {
     }
 }
 
-/// Two sheets, one a thickness above the box's starting top and one `above` higher, each
-/// 0.4 m square with 9 × 9 vertices: a fold lying on the box.
-fn write_two_layers(dir: &Path, above: f64) -> PathBuf {
-    let n = 9;
-    let mut s = String::new();
-    for y in [THICKNESS, THICKNESS + above] {
-        for j in 0..n {
-            for i in 0..n {
-                let (x, z) = (
-                    -0.2 + 0.4 * i as f64 / (n - 1) as f64,
-                    -0.2 + 0.4 * j as f64 / (n - 1) as f64,
-                );
-                s += &format!("v {x} {y} {z}\n");
-            }
-        }
-    }
-    for layer in 0..2 {
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let a = layer * n * n + j * n + i + 1;
-                s += &format!(
-                    "f {a} {} {}\nf {a} {} {}\n",
-                    a + n,
-                    a + n + 1,
-                    a + n + 1,
-                    a + 1
-                );
-            }
-        }
-    }
-    let path = dir.join("fold.obj");
-    std::fs::write(&path, s).unwrap();
-    path
-}
-
 /// A body that moves a thickness or more in a step, under cloth lying on it in two layers with
 /// self-contact: the body moves within each step, pushing the layers up together. Every step
 /// converges, and no frame has a crossing pair, of the cloth with itself or with the box (the
@@ -467,7 +442,12 @@ fn a_fast_box_lifts_a_fold_with_self_contact_every_step_converged_and_nothing_cr
     }
     let out = dir.path().join("fold.glb");
     let job = ClothJob {
-        input: Some(write_two_layers(dir.path(), 1.2 * THICKNESS)),
+        // A fold lying on the box: two sheets, a thickness and 2.2 thicknesses above its top.
+        input: Some(write_layers(
+            dir.path(),
+            "fold",
+            &[THICKNESS, 2.2 * THICKNESS],
+        )),
         self_contact: scenebake::bake::cloth::Switch::On,
         ..job(dir.path(), dir.path().join("box%d.obj"), &out)
     };
