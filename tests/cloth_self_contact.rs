@@ -55,6 +55,22 @@ fn bake(dir: &Path, input: &Path, tag: &str, extra: &[&str]) -> (PathBuf, serde_
     (out, common::read_json(&report))
 }
 
+/// The cloth of the bake written to `out` (its report `r`) as played: its welded triangles and
+/// its positions at each written frame `0..=frames`, read back from the file.
+fn played(
+    out: &std::path::Path,
+    r: &serde_json::Value,
+    frames: usize,
+) -> (Vec<[u32; 3]>, Vec<Vec<scenebake::glam::Vec3>>) {
+    let fps = r["fps"].as_f64().unwrap() as f32;
+    let morph = load_morph(out);
+    let tris = weld(&morph.base, &cloth_triangles(out));
+    let at = (0..=frames)
+        .map(|k| morph.positions_at(k as f32 / fps))
+        .collect();
+    (tris, at)
+}
+
 /// Bakes the curtain's drop; returns the crossing pairs of every written frame (exact test on
 /// the file) and the report's own counts.
 fn drop_curtain(self_contact: &str) -> (Vec<usize>, Vec<usize>, f32, serde_json::Value) {
@@ -75,17 +91,9 @@ fn drop_curtain(self_contact: &str) -> (Vec<usize>, Vec<usize>, f32, serde_json:
             self_contact,
         ],
     );
-    let fps = r["fps"].as_f64().unwrap() as f32;
-    let morph = load_morph(&out);
-    let tris = weld(&morph.base, &cloth_triangles(&out));
-    let file: Vec<usize> = (0..=FRAMES)
-        .map(|k| brute_self(&morph.positions_at(k as f32 / fps), &tris))
-        .collect();
-    let top = morph
-        .positions_at(FRAMES as f32 / fps)
-        .iter()
-        .map(|p| p.y)
-        .fold(f32::MIN, f32::max);
+    let (tris, at) = played(&out, &r, FRAMES);
+    let file: Vec<usize> = at.iter().map(|p| brute_self(p, &tris)).collect();
+    let top = at[FRAMES].iter().map(|p| p.y).fold(f32::MIN, f32::max);
     let reported = common::counts_of(&r["quality"]["self_crossings"]);
     (file, reported, top, r)
 }
@@ -142,12 +150,8 @@ fn the_draped_dress_with_self_contact_converges_and_adds_no_crossing() {
     );
     let unconverged = r["unconverged_frames"].as_array().unwrap();
     assert!(unconverged.is_empty(), "{unconverged:?} {}", r["residuals"]);
-    let fps = r["fps"].as_f64().unwrap() as f32;
-    let morph = load_morph(&out);
-    let tris = weld(&morph.base, &cloth_triangles(&out));
-    let file: Vec<usize> = (0..=2)
-        .map(|k| brute_self(&morph.positions_at(k as f32 / fps), &tris))
-        .collect();
+    let (tris, at) = played(&out, &r, 2);
+    let file: Vec<usize> = at.iter().map(|p| brute_self(p, &tris)).collect();
     assert!(file[0] > 100, "the input crosses itself: {file:?}");
     assert!(file[1..].iter().all(|&n| n <= file[0]), "{file:?}");
 }
@@ -222,23 +226,15 @@ fn drop_on_ridge(self_contact: &str) -> Vec<usize> {
             self_contact,
         ],
     );
-    let fps = r["fps"].as_f64().unwrap() as f32;
-    let morph = load_morph(&out);
-    let tris = weld(&morph.base, &cloth_triangles(&out));
+    let (tris, at) = played(&out, &r, FRAMES);
     let body: Vec<scenebake::glam::Vec3> = corners
         .iter()
         .map(|c| scenebake::glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
         .collect();
     let body_tris: Vec<[u32; 3]> = faces.iter().map(|t| t.map(|v| v - 1)).collect();
-    let file: Vec<usize> = (0..=FRAMES)
-        .map(|k| {
-            brute_between(
-                &morph.positions_at(k as f32 / fps),
-                &tris,
-                &body,
-                &body_tris,
-            )
-        })
+    let file: Vec<usize> = at
+        .iter()
+        .map(|p| brute_between(p, &tris, &body, &body_tris))
         .collect();
     assert_eq!(
         file,
