@@ -426,9 +426,9 @@ fn a_body_from_a_morph_animated_gltf_moves_as_its_sequence() {
 }
 
 /// A body that moves a thickness or more in a step, under cloth lying on it in two layers with
-/// self-contact: the body moves within each step, pushing the layers up together. Every step
-/// converges, and no frame has a crossing pair, of the cloth with itself or with the box (the
-/// report's exact counts).
+/// self-contact: the body moves within each step, pushing the layers up together, while a static
+/// mesh collider (a floor) stays put. Every step converges, and no frame has a crossing pair, of
+/// the cloth with itself or with the box (the report's exact counts).
 #[test]
 fn a_fast_box_lifts_a_fold_with_self_contact_every_step_converged_and_nothing_crossing() {
     let dir = tempfile::tempdir().unwrap();
@@ -440,8 +440,16 @@ fn a_fast_box_lifts_a_fold_with_self_contact_every_step_converged_and_nothing_cr
         let top = fast_top(i as f64 / BODY_FPS);
         std::fs::write(dir.path().join(format!("box{i}.obj")), box_obj(top, false)).unwrap();
     }
+    // A static mesh collider beside the moving body (a floor under the box): it stays put.
+    let floor = dir.path().join("floor.obj");
+    std::fs::write(
+        &floor,
+        "v -1 -0.6 -1\nv 1 -0.6 -1\nv 1 -0.6 1\nv -1 -0.6 1\nf 1 3 2\nf 1 4 3\n",
+    )
+    .unwrap();
     let out = dir.path().join("fold.glb");
     let job = ClothJob {
+        collider: vec![scenebake::cloth::collide::ColliderSpec::mesh(floor)],
         // A fold lying on the box: two sheets, a thickness and 2.2 thicknesses above its top.
         input: Some(write_layers(
             dir.path(),

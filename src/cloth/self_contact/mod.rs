@@ -293,8 +293,11 @@ impl SelfContact {
             debug_assert_eq!(positions.len(), count as usize);
             let range = first as usize..(first + count) as usize;
             if self.move_within {
-                self.obstacle_to.resize(self.fixed.len(), DVec3::ZERO);
-                self.obstacle_from.resize(self.fixed.len(), DVec3::ZERO);
+                if self.obstacle_to.len() != self.fixed.len() {
+                    // Obstacles not moved here (a table beside the body) stay where they are.
+                    self.obstacle_to.clone_from(&self.fixed);
+                    self.obstacle_from.clone_from(&self.fixed);
+                }
                 self.obstacle_to[range.clone()].copy_from_slice(positions);
                 let from = self.fixed[range.clone()].to_vec();
                 self.obstacle_from[range].copy_from_slice(&from);
@@ -724,6 +727,74 @@ impl SelfContact {
                 out[3 * i + 1] += u.y;
                 out[3 * i + 2] += u.z;
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use glam::DVec3;
+
+    use super::SelfContact;
+    use crate::cloth::collide::mesh::MeshCollider;
+    use crate::cloth::collide::{Collider, Colliders, ContactModel};
+    use crate::cloth::preset::lab_cloth;
+    use crate::cloth::system::ReducedSystem;
+    use crate::cloth::{ClothModel, StepParams};
+
+    /// A body moving within the steps moves alone: a second mesh obstacle beside it (a table
+    /// under it) keeps its vertices while the body is pushed halfway, then all the way.
+    #[test]
+    fn only_the_moving_obstacle_moves_within_a_step() {
+        let lab = lab_cloth(4, 100.0);
+        let pinned = lab.pinned_flags();
+        let mass = vec![0.01; lab.mesh.positions.len()];
+        let model = ClothModel::new(lab.mesh, lab.springs, mass, pinned).unwrap();
+        let sys = ReducedSystem::new(&model, StepParams::garment()).unwrap();
+        let square = |y: f64| {
+            let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
+            corners.map(|(x, z)| DVec3::new(x, y, z)).to_vec()
+        };
+        let quad = vec![[0, 2, 1], [0, 3, 2]];
+        let mesh = |y: f64| {
+            Collider::Mesh(Arc::new(
+                MeshCollider::new(square(y), quad.clone()).unwrap(),
+            ))
+        };
+        let colliders = Colliders {
+            shapes: vec![mesh(-2.0), mesh(-1.0)],
+            thickness: 0.01,
+            friction: 0.0,
+            model: ContactModel::Barrier,
+        };
+        let mut s = SelfContact::new(&model, &sys, 0.01)
+            .with_obstacles(&colliders)
+            .moving_obstacles(true);
+        let cloth = model.particle_count();
+        let table = cloth..cloth + 4;
+        let body = cloth + 4..cloth + 8;
+        s.move_obstacle(1, &square(-0.5));
+        assert!(s.obstacles_moving());
+        s.commit_obstacles(0.5);
+        for v in table.clone() {
+            assert_eq!(s.fixed[v].y, -2.0, "the table moved");
+        }
+        for v in body.clone() {
+            assert!(
+                (s.fixed[v].y + 0.75).abs() < 1e-12,
+                "the body halfway: {}",
+                s.fixed[v]
+            );
+        }
+        s.commit_obstacles(1.0);
+        assert!(!s.obstacles_moving());
+        for v in table {
+            assert_eq!(s.fixed[v].y, -2.0, "the table moved");
+        }
+        for v in body {
+            assert_eq!(s.fixed[v].y, -0.5);
         }
     }
 }
