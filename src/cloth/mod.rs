@@ -212,9 +212,7 @@ pub fn make_driven_solver(
                     && matches!(params.colliders.shapes[j], collide::Collider::Mesh(_))
             });
             let self_contact = params.self_contact.map(|layer| {
-                self_contact::SelfContact::new(model, &sys, layer)
-                    .with_obstacles(&params.colliders)
-                    .moving_obstacles(within.is_some())
+                self_contact::SelfContact::new(model, &sys, layer).with_obstacles(&params.colliders)
             });
             if let (Some(j), Some(c)) = (within, &mut colliders) {
                 c.shapes.truncate(j);

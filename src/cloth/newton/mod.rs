@@ -206,6 +206,8 @@ pub struct NewtonSolver {
     trial: Vec<DVec3>,
     /// The trial at [`LONGER_STEP`] times the direction.
     longer: Vec<DVec3>,
+    /// Scratch: the obstacles' drag on the cloth ([`NewtonSolver::push`]).
+    drag: Vec<DVec3>,
     /// Whether the line search tries [`LONGER_STEP`] after a full step
     /// ([`NewtonSolver::with_longer_step`]).
     try_longer: bool,
@@ -298,8 +300,13 @@ impl NewtonSolver {
     /// step starts with the body where the last one ended, and while it is on its way every
     /// other iteration pushes the body and the cloth on together ([`NewtonSolver::push`]);
     /// a step converges once the body has arrived and the residual is within the tolerance.
+    /// (Call it after [`NewtonSolver::with_self_contact`].)
     pub fn with_body_within_steps(mut self, body: Option<usize>) -> Self {
         self.body_within = body;
+        self.self_contact = self
+            .self_contact
+            .take()
+            .map(|s| s.moving_obstacles(body.is_some()));
         self
     }
 
@@ -467,54 +474,61 @@ impl NewtonSolver {
         self.try_longer && self.body_within.is_none()
     }
 
+    /// The fraction of `span` times the direction (`self.dx`) from `x` the cloth can move
+    /// without passing through itself ([`SelfContact::prepare_path`]), the obstacles moving
+    /// along the same fraction of their remaining way too when `with_obstacles`
+    /// ([`SelfContact::prepare_joint_path`]), times `span`.
+    fn reach_along(&mut self, x: &[DVec3], span: f64, with_obstacles: bool) -> f64 {
+        let Some(s) = &mut self.self_contact else {
+            return f64::INFINITY;
+        };
+        let mut far = std::mem::take(&mut self.longer);
+        for ((f, x), d) in far.iter_mut().zip(x).zip(self.dx.chunks_exact(3)) {
+            *f = *x + DVec3::from_slice(d) * span;
+        }
+        let reach = if with_obstacles {
+            s.prepare_joint_path(x, &far)
+        } else {
+            s.prepare_path(x, &far)
+        };
+        self.longer = far;
+        span * reach
+    }
+
     /// Moves the obstacles on towards their goal and the cloth along with them: the direction
     /// H⁻¹ of the barrier's pull by the obstacles' remaining motion, as far as the cloth and the
-    /// obstacles can go together without a pair reaching its target distance.
+    /// obstacles can go together without a pair reaching its target distance, and halved until
+    /// the objective there is finite.
     fn push(&mut self, x: &mut [DVec3]) -> Result<()> {
         let Some(s) = &self.self_contact else {
             return Ok(());
         };
-        let saved = std::mem::take(&mut self.free_grad);
-        let mut drag = vec![DVec3::ZERO; saved.len()];
+        // The direction solves H·Δx = −∇g: with the drag in place of ∇g for this solve.
+        let mut drag = std::mem::take(&mut self.drag);
+        drag.fill(DVec3::ZERO);
         s.add_drag(&mut drag);
-        self.free_grad = drag;
+        std::mem::swap(&mut self.free_grad, &mut drag);
         let solved = self.solve_direction();
-        self.free_grad = saved;
+        std::mem::swap(&mut self.free_grad, &mut drag);
+        self.drag = drag;
         solved?;
-        let mut far = std::mem::take(&mut self.longer);
-        for ((f, x), d) in far.iter_mut().zip(x.iter()).zip(self.dx.chunks_exact(3)) {
-            *f = *x + DVec3::from_slice(d);
-        }
-        if let Some(s) = &mut self.self_contact {
-            s.set_path_span(1.0);
-        }
-        let reach = self.self_path(x, &far);
-        self.longer = far;
-        let mut alpha = reach.min(1.0);
+        let mut alpha = self.reach_along(x, 1.0, true).min(1.0);
         let mut trial = std::mem::take(&mut self.trial);
-        let mut ok = false;
+        let mut moved = false;
         for _ in 0..MAX_HALVINGS {
             if let Some(s) = &mut self.self_contact {
                 s.set_obstacle_fraction(alpha);
             }
-            for ((t, x), d) in trial.iter_mut().zip(x.iter()).zip(self.dx.chunks_exact(3)) {
-                *t = *x + DVec3::from_slice(d) * alpha;
-            }
-            if self.energy(&trial).is_finite() {
-                ok = true;
+            if self.energy_along(x, alpha, &mut trial).is_finite() {
+                x.copy_from_slice(&trial);
+                moved = true;
                 break;
             }
             alpha *= 0.5;
         }
-        if !ok {
-            alpha = 0.0;
-        } else {
-            x.copy_from_slice(&trial);
-        }
         self.trial = trial;
         if let Some(s) = &mut self.self_contact {
-            s.set_path_span(0.0);
-            s.commit_obstacles(alpha);
+            s.commit_obstacles(if moved { alpha } else { 0.0 });
         }
         let at: &[DVec3] = x;
         self.self_path(at, at);
@@ -672,12 +686,7 @@ impl StepSolver for NewtonSolver {
                 } else {
                     1.0
                 };
-                let mut far = std::mem::take(&mut self.longer);
-                for ((f, x), d) in far.iter_mut().zip(x.iter()).zip(self.dx.chunks_exact(3)) {
-                    *f = *x + DVec3::from_slice(d) * span;
-                }
-                reach = span * self.self_path(x, &far);
-                self.longer = far;
+                reach = self.reach_along(x, span, false);
             }
             let mut alpha = reach.min(1.0);
             let mut g = f64::INFINITY;

@@ -291,6 +291,7 @@ impl NewtonSolver {
             dx: vec![0.0; dim],
             trial: vec![DVec3::ZERO; n],
             longer: vec![DVec3::ZERO; n],
+            drag: vec![DVec3::ZERO; n],
             try_longer: true,
             y: vec![DVec3::ZERO; n],
             x0: vec![DVec3::ZERO; n],

@@ -108,7 +108,8 @@ impl SelfContact {
         let first = self.obstacles.first().map_or(usize::MAX, |o| o.1 as usize);
         for (v, e) in self.ends.iter_mut().enumerate() {
             *e = match self.slot[v] {
-                PINNED if span > 0.0 && v >= first && v < self.obstacle_to.len() => {
+                // (A span is set only while obstacles move: `obstacle_to` covers them.)
+                PINNED if span > 0.0 && v >= first => {
                     let f = self.fixed[v];
                     (f, f + (self.obstacle_to[v] - f) * span)
                 }

@@ -37,7 +37,7 @@
 //! step starts with it where the last one ended, where the cloth was kept off it, and pushes
 //! ([`SelfContact::add_drag`], [`SelfContact::commit_obstacles`]) take it on towards where it
 //! is going, the cloth along with it, each as far as additive CCD over both motions allows
-//! ([`SelfContact::set_path_span`]). A body that jumps between steps instead lands on cloth it
+//! ([`SelfContact::prepare_joint_path`]). A body that jumps between steps instead lands on cloth it
 //! would have had to pass through: the pairs it lands next to thin to micrometres and hold the
 //! cloth on the wrong side of its edges, and Newton's steps stall against them
 //! (`docs/cloth.md`, "A moving body").
@@ -170,14 +170,15 @@ pub struct SelfContact {
     /// The mesh colliders whose vertices, edges and triangles join the pairs
     /// ([`SelfContact::with_obstacles`]): collider index, first vertex, vertex count.
     obstacles: Vec<(usize, u32, u32)>,
-    /// Where the obstacles' vertices go within the step (model order, empty unless they
-    /// move with the step: [`SelfContact::moving_obstacles`]).
+    /// Where the obstacles' vertices go within the step (indexed as `fixed`; empty until a body
+    /// moving with the steps first moves: [`SelfContact::moving_obstacles`]).
     obstacle_to: Vec<DVec3>,
     /// Where they were at the last committed iterate.
     obstacle_from: Vec<DVec3>,
     /// Whether the obstacles are still on their way.
     obstacles_moving: bool,
-    /// The fraction of their remaining way the obstacles move along a path being prepared.
+    /// The fraction of their remaining way the obstacles move along a path being prepared (0
+    /// but inside [`SelfContact::prepare_joint_path`]).
     path_span: f64,
     /// Whether obstacles move within the step (else they jump between steps).
     move_within: bool,
@@ -299,8 +300,7 @@ impl SelfContact {
                     self.obstacle_from.clone_from(&self.fixed);
                 }
                 self.obstacle_to[range.clone()].copy_from_slice(positions);
-                let from = self.fixed[range.clone()].to_vec();
-                self.obstacle_from[range].copy_from_slice(&from);
+                self.obstacle_from[range.clone()].copy_from_slice(&self.fixed[range]);
                 self.obstacles_moving = true;
                 self.ready = false;
             } else {
@@ -322,9 +322,13 @@ impl SelfContact {
         self.obstacles_moving
     }
 
-    /// Paths prepared from now on move the obstacles `span` of their remaining way too.
-    pub fn set_path_span(&mut self, span: f64) {
-        self.path_span = if self.obstacles_moving { span } else { 0.0 };
+    /// As [`SelfContact::prepare_path`], with the obstacles still on their way moving along the
+    /// same fraction of their remaining way as the cloth of its path.
+    pub fn prepare_joint_path(&mut self, a: &[DVec3], b: &[DVec3]) -> f64 {
+        self.path_span = if self.obstacles_moving { 1.0 } else { 0.0 };
+        let toi = self.prepare_path(a, b);
+        self.path_span = 0.0;
+        toi
     }
 
     /// Puts the obstacles `alpha` of the way from their committed positions to their goal.
@@ -680,9 +684,9 @@ impl SelfContact {
             }
             let mut drag = DVec3::ZERO;
             if self.obstacles_moving {
-                for ((&v, &f), &w) in pair.v.iter().zip(&free).zip(&s.weights) {
+                for (&v, &w) in pair.v.iter().zip(&s.weights) {
                     let v = v as usize;
-                    if f == PINNED && v < self.obstacle_to.len() && self.is_obstacle(v) {
+                    if self.is_obstacle(v) {
                         drag += n * (w * n.dot(self.obstacle_to[v] - self.fixed[v]));
                     }
                 }
