@@ -117,6 +117,7 @@ fn particle_on_a_slope_obeys_coulomb() {
                 max_newton: newton::DEFAULT_MAX_ITERATIONS,
                 sweeps: newton::DEFAULT_SWEEPS,
                 threads: 1,
+                linear_solver: Default::default(),
                 self_contact: None,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(normal, 0.0).unwrap())],
@@ -200,6 +201,7 @@ fn newton_keeps_a_particle_starting_inside_the_thickness_where_it_started() {
                 max_newton: newton::DEFAULT_MAX_ITERATIONS,
                 sweeps: newton::DEFAULT_SWEEPS,
                 threads: 1,
+                linear_solver: Default::default(),
                 self_contact: None,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],

@@ -20,6 +20,7 @@ fn params(solver: SolverKind, damping: f64, gravity: DVec3) -> BakeParams {
         max_newton: newton::DEFAULT_MAX_ITERATIONS,
         sweeps: newton::DEFAULT_SWEEPS,
         threads: 1,
+        linear_solver: Default::default(),
         colliders: Default::default(),
         self_contact: None,
         wind: None,

@@ -47,7 +47,7 @@ use glam::DVec3;
 
 pub use fast::FastSolver;
 pub use model::ClothModel;
-pub use newton::{BendingFactor, NewtonDiagnostics, NewtonSolver};
+pub use newton::{BendingFactor, LinearSolver, NewtonDiagnostics, NewtonSolver};
 pub use system::{ReducedSystem, StepParams};
 pub use wind::{Aerodynamics, Wind};
 
@@ -130,6 +130,8 @@ pub struct BakeParams {
     pub sweeps: usize,
     /// Threads a bake may use (1: this one only; see [`NewtonSolver::with_threads`]).
     pub threads: usize,
+    /// How Newton solves for its directions ([`NewtonSolver::with_linear_solver`]).
+    pub linear_solver: LinearSolver,
     /// What the cloth collides with (none when empty).
     pub colliders: Colliders,
     /// The cloth's contact with itself: its layer in metres (pairs of its primitives stay more
@@ -226,6 +228,7 @@ pub fn make_driven_solver(
                     .with_self_contact(self_contact)
                     .with_body_within_steps(within)
                     .with_sweeps(params.sweeps)
+                    .with_linear_solver(params.linear_solver)
                     .with_threads(params.threads),
             )
         }

@@ -11,7 +11,7 @@ use crate::cloth::collide::{ColliderSpec, ContactModel, DEFAULT_FRICTION};
 use crate::cloth::material::{BendRest, MaterialPreset};
 use crate::cloth::membrane::MembraneModel;
 use crate::cloth::pins::PinSpec;
-use crate::cloth::SolverKind;
+use crate::cloth::{LinearSolver, SolverKind};
 use crate::error::{Error, Result};
 use crate::export::vat::DEFAULT_MAX_WIDTH;
 use crate::export::{BasisSize, Compression, Interpolation, QuantizeMode, SparseMode, VatMode};
@@ -182,6 +182,13 @@ pub struct ClothJob {
     /// running at once].
     #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
     pub threads: Option<usize>,
+    /// How Newton solves for each iteration's direction: `direct` (a sparse Cholesky factor,
+    /// whose cost grows faster than the mesh), `multigrid` (conjugate gradients preconditioned
+    /// by algebraic multigrid: a cost linear in the mesh), or `auto` (multigrid from 100,000 free
+    /// particles).
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = LinearSolver::Auto, value_name = "SOLVER"))]
+    #[serde(alias = "linear-solver")]
+    pub linear_solver: LinearSolver,
     /// The fabric of a surface mesh, mapped onto its edges by rest length and area [default:
     /// cotton].
     #[cfg_attr(feature = "cli", arg(long, value_enum))]
@@ -569,6 +576,7 @@ impl Default for ClothJob {
             pin_to: None,
             body_collider: Switch::On,
             self_contact: Switch::Off,
+            linear_solver: LinearSolver::Auto,
             self_thickness: None,
             body_exclude: Vec::new(),
             garment_only: false,

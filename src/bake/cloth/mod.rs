@@ -376,6 +376,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             Switch::On => 0,
             Switch::Off => crate::cloth::newton::DEFAULT_SWEEPS,
         }),
+        linear_solver: job.linear_solver,
         threads: job
             .threads
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
@@ -1411,6 +1412,10 @@ fn report(
             SolverKind::Newton => params.sweeps,
         },
         threads: params.threads,
+        linear_solver: (params.solver == SolverKind::Newton).then(|| {
+            let free = model.pinned.len() - model.pinned_count();
+            params.linear_solver.resolve(free)
+        }),
         material: prepared.material.clone(),
         stiffness: prepared.stiffness,
         bend_stiffness: prepared.bend_stiffness,

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use crate::cloth::collide::ContactModel;
 use crate::cloth::material::{Material, MaterialPreset};
-use crate::cloth::SolverKind;
+use crate::cloth::{LinearSolver, SolverKind};
 use crate::export::pointcache::PointCacheFormat;
 use crate::export::vat::VatManifest;
 use crate::export::{BasisStats, CacheStats};
@@ -45,6 +45,9 @@ pub struct ClothReport {
     pub sweeps: usize,
     /// Threads the bake could use (`--threads`).
     pub threads: usize,
+    /// How Newton solved for its directions: `direct` or `multigrid` (`--linear-solver`; `None`
+    /// for the fast solver).
+    pub linear_solver: Option<LinearSolver>,
     /// The fabric, when the body uses the material model (`None`: the labs' springs).
     pub material: Option<MaterialReport>,
     /// Spring stiffness used, N/m (the labs' model; the largest spring's for a material).

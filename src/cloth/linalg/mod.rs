@@ -6,6 +6,7 @@
 pub mod factor;
 pub(crate) mod handoff;
 pub mod lanes;
+pub mod multigrid;
 pub mod ordering;
 pub(crate) mod split;
 

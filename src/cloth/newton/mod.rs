@@ -49,6 +49,7 @@ use self::direction::{Precision, Scratch};
 use self::pattern::BlockCols;
 use super::collide::contact::NewtonContact;
 use super::collide::{Collider, Colliders};
+use super::linalg::multigrid::Multigrid;
 use super::linalg::split::SplitCholesky;
 use super::self_contact::SelfContact;
 use super::smooth::{Smoother, SweepScratch};
@@ -126,6 +127,36 @@ impl BendingFactor {
         }
     }
 }
+
+/// How Newton solves for its direction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum LinearSolver {
+    /// The direct factor below [`MULTIGRID_MIN`] free particles, multigrid from there.
+    #[default]
+    Auto,
+    /// A sparse Cholesky factor: its cost grows faster than the mesh (its fill).
+    Direct,
+    /// Conjugate gradients preconditioned by a smoothed-aggregation multigrid
+    /// ([`Multigrid`]): a cost linear in the mesh.
+    Multigrid,
+}
+
+impl LinearSolver {
+    /// The solver a system of `free` particles gets: [`LinearSolver::Direct`] or
+    /// [`LinearSolver::Multigrid`].
+    pub fn resolve(self, free: usize) -> LinearSolver {
+        match self {
+            LinearSolver::Auto if free >= MULTIGRID_MIN => LinearSolver::Multigrid,
+            LinearSolver::Auto => LinearSolver::Direct,
+            kind => kind,
+        }
+    }
+}
+
+/// Free particles from which [`LinearSolver::Auto`] takes multigrid.
+pub const MULTIGRID_MIN: usize = 100_000;
 
 /// What [`NewtonSolver::diagnostics`] shows of the last step: per free particle, in solver
 /// order (all zeros, and none held, before the first step).
@@ -239,6 +270,9 @@ pub struct NewtonSolver {
     /// solved on two threads at once ([`SplitCholesky`]), when the directions come from
     /// conjugate gradients and the factor's elimination tree splits.
     split_factor: Option<SplitCholesky>,
+    /// The multigrid preconditioner, when it replaces the factor
+    /// ([`NewtonSolver::with_linear_solver`]).
+    multigrid: Option<Multigrid>,
     /// The cloth's contact with itself, when on ([`NewtonSolver::with_self_contact`]).
     self_contact: Option<SelfContact>,
     /// The collider that moves within each step as one of self-contact's obstacles
@@ -267,6 +301,26 @@ impl NewtonSolver {
         self.allow_single = on;
         self.try_single = on;
         self
+    }
+
+    /// Which linear solver gives the directions: with multigrid, each iteration refreshes the
+    /// hierarchy instead of factoring, and a step whose hierarchy fails (a block not positive
+    /// definite in single precision) or whose gradients do not converge factors in double
+    /// precision for the rest of the step.
+    pub fn with_linear_solver(mut self, kind: LinearSolver) -> Self {
+        let on = kind.resolve(self.sys.len()) == LinearSolver::Multigrid;
+        self.multigrid = on.then(|| Multigrid::new(&self.col_ptr, &self.row_idx));
+        if on {
+            self.allow_single = true;
+            self.try_single = true;
+        }
+        self
+    }
+
+    /// The multigrid hierarchy's levels (particles each, finest first), when it gives the
+    /// directions.
+    pub fn multigrid_levels(&self) -> Option<Vec<usize>> {
+        self.multigrid.as_ref().map(Multigrid::sizes)
     }
 
     /// How many Newton directions came from a single-precision factor (after refinement) and

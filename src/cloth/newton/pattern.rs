@@ -263,6 +263,7 @@ impl NewtonSolver {
         let single = if split_factor.is_some() { 0 } else { 1 };
         Ok(NewtonSolver {
             split_factor,
+            multigrid: None,
             self_contact: None,
             body_within: None,
             row_idx32,
