@@ -194,10 +194,10 @@ fn aggregate(a: &Blocks) -> (Vec<u32>, usize) {
         }
     }
     let first = agg.clone();
-    for i in 0..n {
-        if agg[i] == FREE {
+    for (i, agg_i) in agg.iter_mut().enumerate() {
+        if *agg_i == FREE {
             if let Some(&j) = a.col[a.row(i)].iter().find(|&&j| first[j as usize] != FREE) {
-                agg[i] = first[j as usize];
+                *agg_i = first[j as usize];
             }
         }
     }
@@ -582,15 +582,14 @@ mod tests {
         for j in 0..count {
             for c in 0..3 {
                 for &i in &lower[j] {
-                    let b = block(i, j);
-                    for r in 0..3 {
+                    for (r, row) in block(i, j).iter().enumerate() {
                         row_idx.push(3 * i + r);
-                        values.push(b[r][c]);
+                        values.push(row[c]);
                     }
                 }
-                for r in 0..=c {
+                for (r, row) in diag[j].iter().enumerate().take(c + 1) {
                     row_idx.push(3 * j + r);
-                    values.push(diag[j][r][c]);
+                    values.push(row[c]);
                 }
                 col_ptr.push(row_idx.len());
             }
