@@ -24,6 +24,9 @@ use glam::{Mat3, Vec3};
 /// Levels stop coarsening at this many particles or fewer; that level is factored densely.
 pub const COARSEST: usize = 100;
 
+/// Rows from which a level's products and sweeps run on two threads, when the bake has two.
+const PARALLEL_ROWS: usize = 4096;
+
 /// Power iterations estimating the largest eigenvalue of D⁻¹A on each level.
 const POWER_ITERATIONS: usize = 10;
 
@@ -125,15 +128,33 @@ impl Blocks {
         (Blocks { start, col, val }, source)
     }
 
-    /// y = self · x.
-    fn product(&self, x: &[Vec3], y: &mut [Vec3]) {
-        for (i, yi) in y.iter_mut().enumerate() {
-            let mut sum = Vec3::ZERO;
-            for k in self.row(i) {
-                sum += self.val[k] * x[self.col[k] as usize];
+    /// y = self · x, or y += self · x, the two halves of the rows on two threads when `two`.
+    fn product(&self, x: &[Vec3], y: &mut [Vec3], add: bool, two: bool) {
+        let mid = y.len() / 2;
+        halves(y, mid, two, |first, y| {
+            for (i, yi) in (first..).zip(y) {
+                let mut sum = Vec3::ZERO;
+                for k in self.row(i) {
+                    sum += self.val[k] * x[self.col[k] as usize];
+                }
+                *yi = if add { *yi + sum } else { sum };
             }
-            *yi = sum;
-        }
+        });
+    }
+}
+
+/// Runs `f(first, rows)` on `out[..mid]` and `out[mid..]`: at once on two threads when `two`,
+/// else one after the other (the same arithmetic either way).
+fn halves<T: Send>(out: &mut [T], mid: usize, two: bool, f: impl Fn(usize, &mut [T]) + Sync) {
+    let (low, high) = out.split_at_mut(mid);
+    if two {
+        std::thread::scope(|s| {
+            s.spawn(|| f(mid, high));
+            f(0, low);
+        });
+    } else {
+        f(0, low);
+        f(mid, high);
     }
 }
 
@@ -156,6 +177,10 @@ struct Level {
     x: Vec<Vec3>,
     b: Vec<Vec3>,
     r: Vec<Vec3>,
+    /// The iterate before a sweep (what each half reads of the other).
+    prev: Vec<Vec3>,
+    /// Whether this level's products and sweeps run on two threads.
+    two: bool,
 }
 
 /// A smoothed-aggregation hierarchy over a fixed pattern; [`Multigrid::refresh`] takes new
@@ -260,6 +285,7 @@ impl Multigrid {
                 x: vec![Vec3::ZERO; m],
                 b: vec![Vec3::ZERO; m],
                 r: vec![Vec3::ZERO; m],
+                prev: vec![Vec3::ZERO; m],
                 ..Level::default()
             };
             if m <= COARSEST {
@@ -300,6 +326,14 @@ impl Multigrid {
             coarse: None,
             coarse_rhs: Mat::zeros(coarse_dim, 1),
             slot: vec![0; widest],
+        }
+    }
+
+    /// Whether levels of [`PARALLEL_ROWS`] rows or more run their products and sweeps on two
+    /// threads (the same result either way).
+    pub fn use_threads(&mut self, two: bool) {
+        for level in &mut self.levels {
+            level.two = two && level.a.rows() >= PARALLEL_ROWS;
         }
     }
 
@@ -433,20 +467,15 @@ impl Multigrid {
         let next = &mut rest[0];
         level.x.fill(Vec3::ZERO);
         level.gauss_seidel(false);
-        level.a.product(&level.x, &mut level.r);
+        level.a.product(&level.x, &mut level.r, false, level.two);
         for (r, b) in level.r.iter_mut().zip(&level.b) {
             *r = *b - *r;
         }
-        level.pt.product(&level.r, &mut next.b);
+        level.pt.product(&level.r, &mut next.b, false, next.two);
         self.cycle(l + 1);
         let (fine, rest) = self.levels.split_at_mut(l + 1);
         let level = &mut fine[l];
-        let coarse = &rest[0].x;
-        for (i, x) in level.x.iter_mut().enumerate() {
-            for k in level.p.row(i) {
-                *x += level.p.val[k] * coarse[level.p.col[k] as usize];
-            }
-        }
+        level.p.product(&rest[0].x, &mut level.x, true, level.two);
         level.gauss_seidel(true);
     }
 
@@ -472,24 +501,37 @@ impl Multigrid {
 }
 
 impl Level {
-    /// One block Gauss–Seidel sweep on A x = b, forward or backward.
+    /// One block Gauss–Seidel sweep on A x = b, forward or backward, in two halves of the rows
+    /// (hybrid Gauss–Seidel): within its half a row takes the values just updated, from the
+    /// other half those before the sweep. The backward sweep is the forward one's adjoint, so
+    /// the cycle stays symmetric; the halves run at once when the level runs on two threads.
     fn gauss_seidel(&mut self, backward: bool) {
-        let n = self.a.rows();
-        let mut relax = |i: usize| {
-            let mut s = self.b[i];
-            for k in self.a.row(i) {
-                let j = self.a.col[k] as usize;
-                if j != i {
-                    s -= self.a.val[k] * self.x[j];
+        self.prev.copy_from_slice(&self.x);
+        let (a, inverse, b, prev) = (&self.a, &self.inverse, &self.b, &self.prev);
+        let mid = self.x.len() / 2;
+        halves(&mut self.x, mid, self.two, |first, x| {
+            let end = first + x.len();
+            let mut relax = |i: usize| {
+                let mut s = b[i];
+                for k in a.row(i) {
+                    let j = a.col[k] as usize;
+                    if j != i {
+                        let xj = if (first..end).contains(&j) {
+                            x[j - first]
+                        } else {
+                            prev[j]
+                        };
+                        s -= a.val[k] * xj;
+                    }
                 }
+                x[i - first] = inverse[i] * s;
+            };
+            if backward {
+                (first..end).rev().for_each(&mut relax);
+            } else {
+                (first..end).for_each(&mut relax);
             }
-            self.x[i] = self.inverse[i] * s;
-        };
-        if backward {
-            (0..n).rev().for_each(&mut relax);
-        } else {
-            (0..n).for_each(&mut relax);
-        }
+        });
     }
 }
 
@@ -512,7 +554,7 @@ fn largest_eigenvalue(level: &mut Level) -> f32 {
         if !(norm > 0.0 && norm.is_finite()) {
             break;
         }
-        level.a.product(x, y);
+        level.a.product(x, y, false, level.two);
         for (yi, inv) in y.iter_mut().zip(&level.inverse) {
             *yi = *inv * *yi / norm;
         }
@@ -670,6 +712,29 @@ mod tests {
             "iterations grow with the grid: {counts:?}"
         );
         assert!(large <= 50, "iterations: {counts:?}");
+    }
+
+    #[test]
+    fn a_cycle_on_two_threads_equals_one_on_one() {
+        let (col_ptr, row_idx, values) = grid(96, 1.0, 1e4);
+        let r: Vec<f64> = (0..row_idx.len().min(3 * 96 * 96))
+            .map(|i| (i % 13) as f64 - 6.0)
+            .collect();
+        let cycle = |two: bool| {
+            let mut mg = Multigrid::new(&col_ptr, &row_idx);
+            mg.use_threads(two);
+            assert!(mg.refresh(&col_ptr, &values));
+            assert_eq!(mg.levels[0].two, two);
+            let mut z = vec![0.0; r.len()];
+            mg.apply(&r, &mut z);
+            z
+        };
+        let (one, two) = (cycle(false), cycle(true));
+        assert!(one.iter().any(|&z| z != 0.0));
+        assert!(one
+            .iter()
+            .zip(&two)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
     }
 
     #[test]

@@ -37,9 +37,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use glam::DVec3;
 
-use super::pattern::opposite_split;
 use super::NewtonSolver;
-use crate::cloth::system::OPPOSITE;
 use crate::error::{Error, Result};
 
 /// The numeric factorisation's parallelism: one thread. faer's rayon pool on both cores of our
@@ -409,7 +407,6 @@ impl NewtonSolver {
         for o in out.iter_mut() {
             *o = -*o;
         }
-        let bends = &self.sys.bends;
         let at = |v: &[f64], i: usize| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
         let filter = |i: usize, u: DVec3| match self.held[i] {
             Some(n) => u - n * n.dot(u),
@@ -421,12 +418,8 @@ impl NewtonSolver {
         if !self.split {
             return;
         }
-        for (stencil, w) in bends.v.iter().zip(&bends.w) {
-            let Some((c, d)) = opposite_split(stencil) else {
-                continue;
-            };
-            let (wc, wd) = (w[OPPOSITE.0], w[OPPOSITE.1]);
-            let (cross, a) = (wc * wd, (wc * wd).abs());
+        for &(c, d, cross) in &self.opposite {
+            let (c, d, a) = (c as usize, d as usize, cross.abs());
             let (vc, vd) = (filter(c, at(v, c)), filter(d, at(v, d)));
             let mut uc = filter(c, vc * a - vd * cross);
             let mut ud = filter(d, vd * a - vc * cross);

@@ -217,6 +217,9 @@ pub struct NewtonSolver {
     /// Whether the factored matrix is H' rather than H ([`BendingFactor::Split`] with at least
     /// one split stencil), so that directions come from preconditioned conjugate gradients.
     split: bool,
+    /// With the split factor: per split stencil, its opposite vertices c, d and w_c·w_d (the
+    /// pair's coupling that the products by H take off H').
+    opposite: Vec<(u32, u32, f64)>,
     /// Conjugate-gradient vectors (preconditioned residual, search direction, its product).
     cg: [Vec<f64>; 3],
     /// Conjugate-gradient iterations and directions since the solver was made.
@@ -309,7 +312,11 @@ impl NewtonSolver {
     /// precision for the rest of the step.
     pub fn with_linear_solver(mut self, kind: LinearSolver) -> Self {
         let on = kind.resolve(self.sys.len()) == LinearSolver::Multigrid;
-        self.multigrid = on.then(|| Multigrid::new(&self.col_ptr, &self.row_idx));
+        self.multigrid = on.then(|| {
+            let mut mg = Multigrid::new(&self.col_ptr, &self.row_idx);
+            mg.use_threads(self.threads >= 2);
+            mg
+        });
         if on {
             self.allow_single = true;
             self.try_single = true;
@@ -393,6 +400,9 @@ impl NewtonSolver {
         self.threads = threads.max(1);
         if let Some(split) = &mut self.split_factor {
             split.use_helper(self.threads >= 2);
+        }
+        if let Some(mg) = &mut self.multigrid {
+            mg.use_threads(self.threads >= 2);
         }
         self.self_contact = self
             .self_contact

@@ -229,8 +229,21 @@ impl NewtonSolver {
             .map(|e| pair_slots(sys.membrane.vertices(e), block))
             .collect::<Result<Vec<_>>>()?;
         drop(neighbours);
-        let split = bending == BendingFactor::Split
-            && sys.bends.v.iter().any(|v| opposite_split(v).is_some());
+        let opposite: Vec<(u32, u32, f64)> = if bending == BendingFactor::Split {
+            let bends = &sys.bends;
+            bends
+                .v
+                .iter()
+                .zip(&bends.w)
+                .filter_map(|(v, w)| {
+                    let (c, d) = opposite_split(v)?;
+                    Some((c as u32, d as u32, w[OPPOSITE.0] * w[OPPOSITE.1]))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let split = !opposite.is_empty();
 
         let threshold = if n >= SUPERNODAL_MIN {
             SupernodalThreshold::FORCE_SUPERNODAL
@@ -273,6 +286,7 @@ impl NewtonSolver {
             refine: vec![0.0; dim],
             held_factor: Precision::Double,
             split,
+            opposite,
             cg: [vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]],
             cg_count: [0; 2],
             directions: [0; 2],
