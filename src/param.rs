@@ -66,6 +66,8 @@ params! {
     Sweeps => "sweeps",
     /// The threads a bake may use.
     Threads => "threads",
+    /// How Newton solves for its directions (a factor or multigrid).
+    LinearSolver => "linear_solver",
     /// A fabric preset.
     Material => "material",
     /// A fabric's stretch modulus.
