@@ -237,6 +237,36 @@ fn cloth_starting_behind_a_barrier_is_an_error_and_writes_nothing() {
     assert!(names_in(dir.path()).is_empty(), "nothing written");
 }
 
+/// A step that ends with its forces unbalanced by millions of times the cloth's weight solved
+/// nothing: the bake is an error and writes nothing, even though every position is finite and
+/// near the start. The lab cloth with one Newton iteration a step and no sweeps, its particles
+/// made so light that the springs the first iteration leaves unbalanced outweigh them: at
+/// 1e-20 kg a particle the steps end near ρ = 9e6, past the 1e6 limit; at 1e-12 kg near 1e5,
+/// which is exported with its frames flagged.
+#[test]
+fn a_step_ending_a_million_times_off_balance_is_a_divergence_not_an_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let bake = |mass: f64, name: &str| {
+        let mut job = ClothJob::new(
+            ClothSource::LabCloth { resolution: 10 },
+            dir.path().join(name),
+        );
+        job.frames = Some(2);
+        job.mass = Some(mass);
+        job.max_newton = 1;
+        job.sweeps = Some(0);
+        bake_cloth(&job, &mut |_, _| {})
+    };
+    let flagged = bake(1e-12, "flagged.glb").unwrap();
+    let worst = flagged.residuals.iter().copied().fold(0.0, f64::max);
+    assert!((1e3..1e6).contains(&worst), "worst rho {worst}");
+    assert_eq!(flagged.unconverged_frames.len(), 2);
+    let err = bake(1e-20, "noise.glb").unwrap_err().to_string();
+    assert!(err.contains("diverged at frame 1"), "{err}");
+    assert!(err.contains("times the cloth's weight unbalanced"), "{err}");
+    assert_eq!(names_in(dir.path()), ["flagged.glb"]);
+}
+
 /// A bake that runs for a while and then diverges writes nothing: the earlier export stays as it
 /// was and no temporary is left. Gravity of 1e10 m/s² carries the cloth past the divergence
 /// guard's 1e9 m bound after some 27 frames of 50 (x ≈ g·h²·k(k+1)/2 with h = 1/60 s).
