@@ -15,8 +15,9 @@
 //! products by H, preconditioned by the factor of H'.
 //!
 //! Multigrid ([`LinearSolver::Multigrid`](super::LinearSolver)): no factor; each iteration
-//! refreshes a smoothed-aggregation hierarchy of H' ([`Multigrid`](crate::cloth::linalg::multigrid::Multigrid)) and the conjugate gradients
-//! are preconditioned by one V-cycle, a cost linear in the mesh. A hierarchy of H itself
+//! refreshes a smoothed-aggregation hierarchy of H'
+//! ([`Multigrid`](crate::cloth::linalg::multigrid::Multigrid)) and the conjugate gradients are
+//! preconditioned by one V-cycle, a cost linear in the mesh. A hierarchy of H itself
 //! (bending whole) does far worse: bending is a fourth-order operator, whose smooth modes
 //! aggregates of translations do not capture (43–59 gradients to 1e-2 on the 32k- and
 //! 128k-vertex skirts, against 12–17 on H').
@@ -53,7 +54,8 @@ pub(super) fn factor_par() -> Par {
 pub(super) enum Precision {
     Single,
     Double,
-    /// No factor: a multigrid hierarchy ([`Multigrid`](crate::cloth::linalg::multigrid::Multigrid)).
+    /// No factor: a multigrid hierarchy
+    /// ([`Multigrid`](crate::cloth::linalg::multigrid::Multigrid)).
     Multigrid,
 }
 
