@@ -117,6 +117,7 @@ impl NewtonSolver {
                 None => *g,
             };
         }
+        self.any_held = any;
         any
     }
 

@@ -420,6 +420,20 @@ impl NewtonSolver {
         if !self.split {
             return;
         }
+        if !self.any_held {
+            // Nothing held: every filter is the identity (the same arithmetic without reading
+            // `held` at two random particles per pair).
+            for &(c, d, cross) in &self.opposite {
+                let (c, d, a) = (c as usize, d as usize, cross.abs());
+                let (vc, vd) = (at(v, c), at(v, d));
+                for (i, u) in [(c, vc * a - vd * cross), (d, vd * a - vc * cross)] {
+                    out[3 * i] -= u.x;
+                    out[3 * i + 1] -= u.y;
+                    out[3 * i + 2] -= u.z;
+                }
+            }
+            return;
+        }
         for &(c, d, cross) in &self.opposite {
             let (c, d, a) = (c as usize, d as usize, cross.abs());
             let (vc, vd) = (filter(c, at(v, c)), filter(d, at(v, d)));

@@ -258,6 +258,8 @@ pub struct NewtonSolver {
     contact: Option<NewtonContact>,
     /// Per particle: the normal of the collider holding it in this iteration, if any.
     held: Vec<Option<DVec3>>,
+    /// Whether any particle is held in this iteration.
+    any_held: bool,
     /// The gradient less the normal parts the colliders hold (the contact forces).
     free_grad: Vec<DVec3>,
     /// Gauss–Seidel sweeps after each Newton iteration ([`NewtonSolver::with_sweeps`]), and

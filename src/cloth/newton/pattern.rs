@@ -315,6 +315,7 @@ impl NewtonSolver {
             steps: 0,
             contact: None,
             held: vec![None; n],
+            any_held: false,
             free_grad: vec![DVec3::ZERO; n],
             sweeps: 0,
             smoother: None,

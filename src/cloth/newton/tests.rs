@@ -117,6 +117,7 @@ fn a_split_factor_gives_the_whole_factors_direction() {
                 split.held[i] = Some(n);
                 whole.held[i] = Some(n);
             }
+            (split.any_held, whole.any_held) = (true, true);
             split.filter_hessian();
             whole.filter_hessian();
         }
