@@ -65,6 +65,11 @@ fn options_that_do_not_apply_to_the_input_are_errors() {
         &["cloth", "--preset", "lab-cloth", "--object", "cloth", "-o", "x.glb"],
         "error: invalid value for --object: picks part of an input file; the lab-cloth preset has none",
     );
+    fails_exactly(
+        dir.path(),
+        &["cloth", &obj, "--solver", "fast", "--linear-solver", "multigrid", "-o", "x.glb"],
+        "error: invalid value for --linear-solver: how Newton solves for its directions; the fast solver has one prefactored matrix (choose the newton solver, or leave the linear solver out)",
+    );
 }
 
 /// The triangle membrane is a fabric model of Newton's: with the fast solver, the labs'

@@ -27,7 +27,7 @@ use crate::cloth::preset::{self, lab_cloth};
 use crate::cloth::springs::{surface_springs, volume_springs, SpringKind, SpringSet};
 use crate::cloth::wind::{self, Wind};
 use crate::cloth::{
-    make_solver, simulate, BakeParams, ClothModel, Simulation, SolverKind, StepStats,
+    make_solver, simulate, BakeParams, ClothModel, LinearSolver, Simulation, SolverKind, StepStats,
 };
 use crate::error::{Error, Result};
 use crate::export::basis::encode_basis_gltf;
@@ -117,6 +117,13 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             Param::SelfContact,
             "on: self-contact is part of Newton's solve; the fast solver has none (choose the \
              newton solver)",
+        ));
+    }
+    if job.linear_solver != LinearSolver::Auto && job.solver == SolverKind::Fast {
+        return Err(Error::param_value(
+            Param::LinearSolver,
+            "how Newton solves for its directions; the fast solver has one prefactored matrix \
+             (choose the newton solver, or leave the linear solver out)",
         ));
     }
     if job.mass.is_some() && job.density.is_some() {
