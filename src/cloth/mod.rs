@@ -223,13 +223,18 @@ pub fn make_driven_solver(
                 }
             }
             Box::new(
-                NewtonSolver::new(sys, params.tolerance, params.max_newton)?
-                    .with_colliders(colliders)
-                    .with_self_contact(self_contact)
-                    .with_body_within_steps(within)
-                    .with_sweeps(params.sweeps)
-                    .with_linear_solver(params.linear_solver)
-                    .with_threads(params.threads),
+                NewtonSolver::with_linear_solver(
+                    sys,
+                    params.tolerance,
+                    params.max_newton,
+                    BendingFactor::default(),
+                    params.linear_solver,
+                )?
+                .with_colliders(colliders)
+                .with_self_contact(self_contact)
+                .with_body_within_steps(within)
+                .with_sweeps(params.sweeps)
+                .with_threads(params.threads),
             )
         }
     })

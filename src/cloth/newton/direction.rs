@@ -98,6 +98,9 @@ pub(super) const CG_MAX_ITERATIONS: usize = 60;
 /// multigrid is there to avoid.
 pub(super) const MULTIGRID_CG_MAX_ITERATIONS: usize = 200;
 
+/// Every path that solves with the factor runs after a factorisation, which analyses it first.
+const ANALYSED: &str = "a factor is analysed before it is used";
+
 /// faer's workspace (which has no `Debug`).
 pub(super) struct Scratch(pub(super) MemBuffer);
 
@@ -166,14 +169,14 @@ impl NewtonSolver {
             }
             self.try_single = false;
         }
-        if self.try_single {
+        if let (true, Some(symbolic)) = (self.try_single, &self.symbolic) {
             for (v32, v) in self.values32.iter_mut().zip(&self.values) {
                 *v32 = *v as f32;
             }
             let dim = self.dx.len();
             let pattern =
                 SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx);
-            let factored = self.symbolic.factorize_numeric_llt(
+            let factored = symbolic.factorize_numeric_llt(
                 &mut self.l_values32,
                 SparseColMatRef::new(pattern, &self.values32),
                 Side::Upper,
@@ -194,11 +197,13 @@ impl NewtonSolver {
     }
 
     pub(super) fn factorize_double(&mut self) -> Result<()> {
+        self.analyse_factor()?;
+        let symbolic = self.symbolic.as_ref().expect(ANALYSED);
         let dim = self.dx.len();
         let pattern =
             SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx);
         let a = SparseColMatRef::new(pattern, &self.values);
-        self.symbolic
+        symbolic
             .factorize_numeric_llt(
                 &mut self.l_values,
                 a,
@@ -252,7 +257,7 @@ impl NewtonSolver {
                 for (b, r) in self.rhs32.iter_mut().zip(&self.refine) {
                     *b = *r as f32;
                 }
-                let llt = LltRef::new(&self.symbolic, &self.l_values32);
+                let llt = LltRef::new(self.symbolic.as_ref().expect(ANALYSED), &self.l_values32);
                 let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
                 llt.solve_in_place_with_conj(
                     Conj::No,
@@ -288,7 +293,7 @@ impl NewtonSolver {
             self.factorize_double()?;
         }
         negate_into(&mut self.dx, &self.free_grad);
-        let llt = LltRef::new(&self.symbolic, &self.l_values);
+        let llt = LltRef::new(self.symbolic.as_ref().expect(ANALYSED), &self.l_values);
         let rhs = MatMut::from_column_major_slice_mut(&mut self.dx, dim, 1);
         llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.scratch.0));
         self.directions[1] += 1;
@@ -385,7 +390,7 @@ impl NewtonSolver {
             if let Some(split) = &mut self.split_factor {
                 split.solve(&mut self.rhs32);
             } else {
-                let llt = LltRef::new(&self.symbolic, &self.l_values32);
+                let llt = LltRef::new(self.symbolic.as_ref().expect(ANALYSED), &self.l_values32);
                 let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
                 llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
             }
@@ -394,7 +399,7 @@ impl NewtonSolver {
             }
         } else {
             z.copy_from_slice(r);
-            let llt = LltRef::new(&self.symbolic, &self.l_values);
+            let llt = LltRef::new(self.symbolic.as_ref().expect(ANALYSED), &self.l_values);
             let rhs = MatMut::from_column_major_slice_mut(z, dim, 1);
             llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
         }

@@ -202,7 +202,8 @@ pub struct NewtonSolver {
     /// Per membrane triangle and corner pair ([`pattern::pair_slots`]): the pair's off-diagonal block,
     /// `None` where either corner is pinned.
     membrane_off: Vec<[Option<BlockCols>; 3]>,
-    symbolic: SymbolicCholesky<usize>,
+    /// The factor's symbolic analysis; `None` with multigrid until a step needs a factor.
+    symbolic: Option<SymbolicCholesky<usize>>,
     l_values: Vec<f64>,
     /// The Hessian's values rounded to single precision, and their factor (see
     /// [`NewtonSolver::solve_direction`]).
@@ -305,24 +306,6 @@ impl NewtonSolver {
     pub fn single_precision(mut self, on: bool) -> Self {
         self.allow_single = on;
         self.try_single = on;
-        self
-    }
-
-    /// Which linear solver gives the directions: with multigrid, each iteration refreshes the
-    /// hierarchy instead of factoring, and a step whose hierarchy fails (a block not positive
-    /// definite in single precision) or whose gradients do not converge factors in double
-    /// precision for the rest of the step.
-    pub fn with_linear_solver(mut self, kind: LinearSolver) -> Self {
-        let on = kind.resolve(self.sys.len()) == LinearSolver::Multigrid;
-        self.multigrid = on.then(|| {
-            let mut mg = Multigrid::new(&self.col_ptr, &self.row_idx);
-            mg.use_threads(self.threads >= 2);
-            mg
-        });
-        if on {
-            self.allow_single = true;
-            self.try_single = true;
-        }
         self
     }
 

@@ -11,12 +11,14 @@
 //! and no permutation is applied at each factorisation and solve.
 
 use faer::dyn_stack::{MemBuffer, StackReq};
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::SupernodalThreshold;
 use glam::DVec3;
 
 use super::direction::{factor_par, Precision, Scratch};
-use super::{BendingFactor, NewtonSolver};
+use super::{BendingFactor, LinearSolver, NewtonSolver};
 use crate::cloth::linalg::analyse_upper_with;
+use crate::cloth::linalg::multigrid::Multigrid;
 use crate::cloth::linalg::split::SplitCholesky;
 use crate::cloth::smooth::SweepScratch;
 use crate::cloth::system::{BendCoupling, ReducedSystem, OPPOSITE, PINNED};
@@ -129,6 +131,34 @@ pub(super) fn index32(i: usize) -> Result<u32> {
     u32::try_from(i).map_err(|_| Error::Factorisation(format!("Hessian too large ({i} entries)")))
 }
 
+/// The symbolic analysis of Newton's pattern for `n` particles.
+fn analyse(n: usize, col_ptr: &[usize], row_idx: &[usize]) -> Result<SymbolicCholesky<usize>> {
+    let threshold = if n >= SUPERNODAL_MIN {
+        SupernodalThreshold::FORCE_SUPERNODAL
+    } else {
+        SupernodalThreshold::AUTO
+    };
+    analyse_upper_with(3 * n, col_ptr, row_idx, threshold)
+}
+
+/// faer's workspace for factoring and solving with `symbolic` in either precision.
+fn factor_scratch(symbolic: &SymbolicCholesky<usize>) -> Scratch {
+    let par = factor_par();
+    Scratch(MemBuffer::new(StackReq::any_of(&[
+        symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+        symbolic.solve_in_place_scratch::<f64>(1, par),
+        symbolic.factorize_numeric_llt_scratch::<f32>(par, Default::default()),
+        symbolic.solve_in_place_scratch::<f32>(1, par),
+    ])))
+}
+
+fn is_supernodal(symbolic: &SymbolicCholesky<usize>) -> bool {
+    matches!(
+        symbolic.raw(),
+        faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
+    )
+}
+
 impl NewtonSolver {
     /// As [`NewtonSolver::new`], factoring `bending` (see [`BendingFactor`]). Either factor
     /// works with a system in any order; one ordered with [`BendingFactor::coupling`] fills
@@ -142,7 +172,32 @@ impl NewtonSolver {
         max_iterations: usize,
         bending: BendingFactor,
     ) -> Result<Self> {
+        Self::with_linear_solver(
+            sys,
+            tolerance,
+            max_iterations,
+            bending,
+            LinearSolver::Direct,
+        )
+    }
+
+    /// As [`NewtonSolver::with_bending_factor`], its directions from `linear` (see
+    /// [`LinearSolver`]). With multigrid, each iteration refreshes the hierarchy instead of
+    /// factoring, and no factor is analysed unless a step needs one: a step whose hierarchy
+    /// fails (a block not positive definite in single precision) or whose gradients do not
+    /// converge factors in double precision for the rest of the step.
+    ///
+    /// # Errors
+    /// As [`NewtonSolver::with_bending_factor`].
+    pub fn with_linear_solver(
+        sys: ReducedSystem,
+        tolerance: f64,
+        max_iterations: usize,
+        bending: BendingFactor,
+        linear: LinearSolver,
+    ) -> Result<Self> {
         let n = sys.len();
+        let multigrid = linear.resolve(n) == LinearSolver::Multigrid;
         let coupling = bending.coupling();
         let sp = &sys.springs;
         // Lower-indexed neighbours of each particle, sorted and unique (CSR by higher end).
@@ -245,43 +300,40 @@ impl NewtonSolver {
         };
         let split = !opposite.is_empty();
 
-        let threshold = if n >= SUPERNODAL_MIN {
-            SupernodalThreshold::FORCE_SUPERNODAL
+        let row_idx32 = row_idx.iter().map(|&r| index32(r)).collect::<Result<_>>()?;
+        let (symbolic, scratch) = if multigrid {
+            (None, Scratch(MemBuffer::new(StackReq::EMPTY)))
         } else {
-            SupernodalThreshold::AUTO
+            let symbolic = analyse(n, &col_ptr, &row_idx)?;
+            let scratch = factor_scratch(&symbolic);
+            (Some(symbolic), scratch)
         };
-        let symbolic = analyse_upper_with(dim, &col_ptr, &row_idx, threshold)?;
-        let par = factor_par();
-        let scratch = Scratch(MemBuffer::new(StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, par),
-            symbolic.factorize_numeric_llt_scratch::<f32>(par, Default::default()),
-            symbolic.solve_in_place_scratch::<f32>(1, par),
-        ])));
         // Single precision pays where faer's supernodal factor spends its time in dense SIMD
         // kernels; a small system's simplicial factor is scalar code, and refinement would only
-        // add solves.
-        let supernodal = matches!(
-            symbolic.raw(),
-            faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
-        );
-        let row_idx32 = row_idx.iter().map(|&r| index32(r)).collect::<Result<_>>()?;
-        let split_factor = if split && supernodal {
-            SplitCholesky::new(&col_ptr, &row_idx, &symbolic)
-        } else {
-            None
+        // add solves. Multigrid's hierarchy is in single precision.
+        let supernodal = symbolic.as_ref().is_some_and(is_supernodal);
+        let split_factor = match &symbolic {
+            Some(symbolic) if split && supernodal => {
+                SplitCholesky::new(&col_ptr, &row_idx, symbolic)
+            }
+            _ => None,
         };
+        let len_val = symbolic.as_ref().map_or(0, |s| s.len_val());
         // The whole single-precision factor is not needed beside the halves (a failed half
-        // falls back to double precision).
-        let single = if split_factor.is_some() { 0 } else { 1 };
+        // falls back to double precision), nor with multigrid.
+        let single = if split_factor.is_some() || multigrid {
+            0
+        } else {
+            1
+        };
         Ok(NewtonSolver {
             split_factor,
-            multigrid: None,
+            multigrid: multigrid.then(|| Multigrid::new(&col_ptr, &row_idx)),
             self_contact: None,
             body_within: None,
             row_idx32,
             values32: vec![0.0; single * row_idx.len()],
-            l_values32: vec![0.0; single * symbolic.len_val()],
+            l_values32: vec![0.0; single * len_val],
             rhs32: vec![0.0; dim],
             refine: vec![0.0; dim],
             held_factor: Precision::Double,
@@ -290,9 +342,9 @@ impl NewtonSolver {
             cg: [vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]],
             cg_count: [0; 2],
             directions: [0; 2],
-            allow_single: supernodal,
-            try_single: supernodal,
-            l_values: vec![0.0; symbolic.len_val()],
+            allow_single: supernodal || multigrid,
+            try_single: supernodal || multigrid,
+            l_values: vec![0.0; len_val],
             values: vec![0.0; row_idx.len()],
             symbolic,
             scratch,
@@ -340,10 +392,21 @@ impl NewtonSolver {
 
     /// True when the symbolic analysis chose a supernodal factor.
     pub fn is_supernodal(&self) -> bool {
-        matches!(
-            self.symbolic.raw(),
-            faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
-        )
+        self.symbolic.as_ref().is_some_and(is_supernodal)
+    }
+
+    /// Analyses the factor when it was not (with multigrid, until a step needs a factor).
+    ///
+    /// # Errors
+    /// [`Error::Factorisation`] when the symbolic analysis fails (out of memory).
+    pub(super) fn analyse_factor(&mut self) -> Result<()> {
+        if self.symbolic.is_none() {
+            let symbolic = analyse(self.sys.len(), &self.col_ptr, &self.row_idx)?;
+            self.scratch = factor_scratch(&symbolic);
+            self.l_values = vec![0.0; symbolic.len_val()];
+            self.symbolic = Some(symbolic);
+        }
+        Ok(())
     }
 
     /// Assembles the Hessian at `x` and factors it numerically, as one Newton iteration does

@@ -168,6 +168,48 @@ fn a_split_factor_gives_the_whole_factors_direction() {
     );
 }
 
+/// Multigrid's directions are the whole factor's too (within the same 3 % as the split
+/// factor's), and a multigrid solver analyses no factor until a step needs one: its
+/// double-precision fallback, analysed on demand, gives the same direction.
+#[test]
+fn multigrid_gives_the_whole_factors_direction_and_analyses_a_factor_only_on_demand() {
+    let (sys, x) = cotton_sheet(24, BendCoupling::WithoutOpposite);
+    let y: Vec<DVec3> = x.iter().map(|p| *p + DVec3::new(0.0, -0.01, 0.0)).collect();
+    let mut whole = NewtonSolver::with_bending_factor(sys.clone(), 0.1, 100, BendingFactor::Whole)
+        .unwrap()
+        .single_precision(false);
+    let linear = LinearSolver::Multigrid;
+    let mut mg =
+        NewtonSolver::with_linear_solver(sys, 0.1, 100, BendingFactor::Split, linear).unwrap();
+    assert!(mg.symbolic.is_none() && mg.factor_nnz() == 0);
+    for s in [&mut whole, &mut mg] {
+        s.y.copy_from_slice(&y);
+        s.assemble(&x);
+        assert!(!s.hold(&x));
+        s.factorize().unwrap();
+        s.solve_direction().unwrap();
+    }
+    assert_eq!(mg.held_factor, Precision::Multigrid);
+    assert!(mg.symbolic.is_none());
+    let size = dot(&whole.dx, &whole.dx).sqrt();
+    let off = |s: &NewtonSolver| {
+        s.dx.iter()
+            .zip(&whole.dx)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    assert!(off(&mg) < 0.03 * size, "multigrid: {} of {size}", off(&mg));
+    mg.factorize_double().unwrap();
+    assert!(mg.factor_nnz() > 0);
+    mg.solve_direction().unwrap();
+    assert!(
+        off(&mg) < 0.03 * size,
+        "its fallback: {} of {size}",
+        off(&mg)
+    );
+}
+
 /// A deterministic, non-trivial configuration: some springs stretched, some compressed.
 fn perturbed(x: &[DVec3]) -> Vec<DVec3> {
     x.iter()
