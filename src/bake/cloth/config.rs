@@ -184,8 +184,8 @@ pub struct ClothJob {
     pub threads: Option<usize>,
     /// How Newton solves for each iteration's direction: `direct` (a sparse Cholesky factor,
     /// whose cost grows faster than the mesh), `multigrid` (conjugate gradients preconditioned
-    /// by algebraic multigrid: a cost linear in the mesh), or `auto` (multigrid from 100,000 free
-    /// particles).
+    /// by algebraic multigrid, each gradient's cost linear in the mesh), or `auto` (multigrid
+    /// from 100,000 free particles).
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = LinearSolver::Auto, value_name = "SOLVER"))]
     #[serde(alias = "linear-solver")]
     pub linear_solver: LinearSolver,

@@ -133,13 +133,13 @@ impl BendingFactor {
 #[serde(rename_all = "lowercase")]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum LinearSolver {
-    /// The direct factor below [`MULTIGRID_MIN`] free particles, multigrid from there.
+    /// The direct factor below 100,000 free particles, multigrid from there.
     #[default]
     Auto,
     /// A sparse Cholesky factor: its cost grows faster than the mesh (its fill).
     Direct,
-    /// Conjugate gradients preconditioned by a smoothed-aggregation multigrid
-    /// ([`Multigrid`]): a cost linear in the mesh.
+    /// Conjugate gradients preconditioned by smoothed-aggregation algebraic multigrid: each
+    /// gradient's cost linear in the mesh.
     Multigrid,
 }
 
