@@ -79,7 +79,7 @@ impl Blocks {
             list.sort_unstable();
             list
         });
-        Blocks::from_rows(rows.collect::<Vec<_>>().into_iter())
+        Blocks::from_rows(rows)
     }
 
     /// Overwrites `out`'s values (its pattern from [`Blocks::product_pattern`]) with
@@ -338,7 +338,8 @@ impl Multigrid {
     }
 
     /// Levels in the hierarchy, finest first: each one's particles.
-    pub fn sizes(&self) -> Vec<usize> {
+    #[cfg(test)]
+    fn sizes(&self) -> Vec<usize> {
         self.levels.iter().map(|l| l.a.rows()).collect()
     }
 

@@ -415,7 +415,9 @@ impl NewtonSolver {
             *o = -*o;
         }
         let at = |v: &[f64], i: usize| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
-        let filter = |i: usize, u: DVec3| match self.held[i] {
+        // Nothing held (the common case): `held` is not read at two random particles per pair.
+        let held = |i: usize| if self.any_held { self.held[i] } else { None };
+        let filter = |i: usize, u: DVec3| match held(i) {
             Some(n) => u - n * n.dot(u),
             None => u,
         };
@@ -425,27 +427,13 @@ impl NewtonSolver {
         if !self.split {
             return;
         }
-        if !self.any_held {
-            // Nothing held: every filter is the identity (the same arithmetic without reading
-            // `held` at two random particles per pair).
-            for &(c, d, cross) in &self.opposite {
-                let (c, d, a) = (c as usize, d as usize, cross.abs());
-                let (vc, vd) = (at(v, c), at(v, d));
-                for (i, u) in [(c, vc * a - vd * cross), (d, vd * a - vc * cross)] {
-                    out[3 * i] -= u.x;
-                    out[3 * i + 1] -= u.y;
-                    out[3 * i + 2] -= u.z;
-                }
-            }
-            return;
-        }
         for &(c, d, cross) in &self.opposite {
             let (c, d, a) = (c as usize, d as usize, cross.abs());
             let (vc, vd) = (filter(c, at(v, c)), filter(d, at(v, d)));
             let mut uc = filter(c, vc * a - vd * cross);
             let mut ud = filter(d, vd * a - vc * cross);
             for (i, u) in [(c, &mut uc), (d, &mut ud)] {
-                if let Some(n) = self.held[i] {
+                if let Some(n) = held(i) {
                     *u += n * (a * n.dot(at(v, i)));
                 }
             }

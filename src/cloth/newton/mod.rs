@@ -228,7 +228,8 @@ pub struct NewtonSolver {
     /// Newton directions taken from a single-precision factor and from a double-precision one,
     /// since the solver was made.
     directions: [usize; 2],
-    /// Whether Newton factors in single precision first ([`NewtonSolver::single_precision`]).
+    /// Whether each step first tries the approximate preconditioner: a single-precision factor
+    /// ([`NewtonSolver::single_precision`]), or the multigrid hierarchy.
     allow_single: bool,
     /// False once a single-precision factor failed in this step: the rest of the step factors
     /// in double precision.
@@ -307,12 +308,6 @@ impl NewtonSolver {
         self.allow_single = on;
         self.try_single = on;
         self
-    }
-
-    /// The multigrid hierarchy's levels (particles each, finest first), when it gives the
-    /// directions.
-    pub fn multigrid_levels(&self) -> Option<Vec<usize>> {
-        self.multigrid.as_ref().map(Multigrid::sizes)
     }
 
     /// How many Newton directions came from a single-precision factor (after refinement) and
