@@ -25,6 +25,7 @@
 
 pub mod bake;
 pub mod cloth;
+pub mod cores;
 pub mod data;
 pub mod error;
 pub mod export;

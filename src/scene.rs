@@ -18,12 +18,14 @@
 //! [`Param::key`]: crate::param::Param::key
 
 use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
 
 use serde::de::{self, Deserialize, Visitor};
 
 use crate::bake::outputs::{check_writable, cloth_outputs, ik_outputs, OutputFile};
 use crate::bake::{bake_cloth, bake_ik, ClothJob, ClothReport, IkJob, IkReport};
 use crate::cloth::collide::ColliderSpec;
+use crate::cores::CoreShare;
 use crate::error::{Error, Result};
 
 /// A loaded scene.
@@ -142,12 +144,12 @@ impl Job {
         }
     }
 
-    /// The job with at most `threads` threads where it does not name its own (`threads` in a
+    /// The job taking its threads from `share` where it does not name its own (`threads` in a
     /// cloth job): a scene running several jobs at once shares the cores among them.
-    pub fn with_thread_budget(&self, threads: usize) -> Job {
+    pub fn with_core_share(&self, share: &Arc<CoreShare>) -> Job {
         match self {
             Job::Cloth(j) if j.threads.is_none() => Job::Cloth(Box::new(ClothJob {
-                threads: Some(threads.max(1)),
+                share: Some(Arc::clone(share)),
                 ..(**j).clone()
             })),
             job => job.clone(),

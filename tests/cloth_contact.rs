@@ -116,9 +116,10 @@ fn particle_on_a_slope_obeys_coulomb() {
                 tolerance: 1e-10,
                 max_newton: newton::DEFAULT_MAX_ITERATIONS,
                 sweeps: newton::DEFAULT_SWEEPS,
-                threads: 1,
+                threads: 1.into(),
                 linear_solver: Default::default(),
                 self_contact: None,
+                measure_from: 0,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(normal, 0.0).unwrap())],
                     thickness,
@@ -200,9 +201,10 @@ fn newton_keeps_a_particle_starting_inside_the_thickness_where_it_started() {
                 tolerance: 1e-10,
                 max_newton: newton::DEFAULT_MAX_ITERATIONS,
                 sweeps: newton::DEFAULT_SWEEPS,
-                threads: 1,
+                threads: 1.into(),
                 linear_solver: Default::default(),
                 self_contact: None,
+                measure_from: 0,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
                     thickness,

@@ -479,7 +479,8 @@ fn gauss_seidel_sweeps_shorten_newton_without_moving_its_solution() {
 
 /// With two threads (`--threads 2`) Newton's sweeps move a garment's two halves at once, and
 /// the bake is the same to the bit as on one thread: hanging from its waist, and dropped onto a
-/// sphere (the sweeps' barrier planes), three frames each. The circle skirt is split: neither
+/// sphere (the sweeps' barrier planes), three frames each, and when a second thread comes free
+/// after the first frame (a scene's share of the cores). The circle skirt is split: neither
 /// half holds less than a third of its particles.
 #[test]
 fn two_threads_bake_the_same_garment_as_one() {
@@ -487,6 +488,7 @@ fn two_threads_bake_the_same_garment_as_one() {
     use scenebake::cloth::newton::{BendingFactor, NewtonSolver};
     use scenebake::cloth::smooth::Smoother;
     use scenebake::cloth::system::ReducedSystem;
+    use scenebake::cores::{CoreShare, Threads};
 
     let hanging = hanging_circle_skirt();
     let mut dropped = hanging.clone();
@@ -515,13 +517,20 @@ fn two_threads_bake_the_same_garment_as_one() {
             3 * ha.min(hb) > ha.max(hb) && 10 * top < ha + hb,
             "{name}: factor halves of {ha} and {hb} columns, a top of {top}"
         );
-        let bake = |threads: usize| {
+        let bake = |threads: Threads| {
             let mut params = p.params.clone();
-            params.threads = threads;
+            params.threads = threads.clone();
             let mut solver = make_solver(&p.model, &params).unwrap();
-            simulate(&p.model, solver.as_mut(), &params, &mut |_| {}).unwrap()
+            simulate(&p.model, solver.as_mut(), &params, &mut |frame| {
+                // A scene's other job ends after the first frame: this one takes its core.
+                if let (1, Threads::Shared(share)) = (frame, &threads) {
+                    share.leave();
+                }
+            })
+            .unwrap()
         };
-        let (one, two) = (bake(1), bake(2));
+        let (one, two) = (bake(1.into()), bake(2.into()));
+        let shared = bake(Threads::Shared(CoreShare::new(2, 2)));
         let last = one.cache.frame_count() - 1;
         let moved = one
             .cache
@@ -535,10 +544,15 @@ fn two_threads_bake_the_same_garment_as_one() {
             s.frames.iter().map(|f| f.iterations).collect()
         };
         assert_eq!(iterations(&one), iterations(&two), "{name}");
+        assert_eq!(iterations(&one), iterations(&shared), "{name}");
         for k in 0..one.cache.frame_count() {
             assert!(
                 one.cache.frame(k) == two.cache.frame(k),
                 "{name}: frame {k} differs between one thread and two"
+            );
+            assert!(
+                one.cache.frame(k) == shared.cache.frame(k),
+                "{name}: frame {k} differs between one thread and one then two"
             );
         }
     }

@@ -19,10 +19,11 @@ fn params(solver: SolverKind, damping: f64, gravity: DVec3) -> BakeParams {
         tolerance: 1e-12,
         max_newton: newton::DEFAULT_MAX_ITERATIONS,
         sweeps: newton::DEFAULT_SWEEPS,
-        threads: 1,
+        threads: 1.into(),
         linear_solver: Default::default(),
         colliders: Default::default(),
         self_contact: None,
+        measure_from: 0,
         wind: None,
     }
 }

@@ -13,6 +13,7 @@ use anyhow::{anyhow, bail};
 use clap::Args;
 use indicatif::MultiProgress;
 use scenebake::bake::outputs::{check_writable, OutputFile};
+use scenebake::cores::CoreShare;
 use scenebake::scene::{Job, Scene, SceneJob};
 use scenebake::Param;
 
@@ -117,8 +118,9 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
         None => cores,
     }
     .min(selected.len().max(1));
-    // Jobs running at once share the cores (a cloth job that names its `threads` keeps them).
-    let budget = (cores / workers).max(1);
+    // Jobs running at once share the cores, and a worker that finds no job left gives its
+    // share to the jobs still running (a cloth job that names its `threads` keeps them).
+    let share = CoreShare::new(cores, workers);
     let start = std::time::Instant::now();
     let total = selected.len();
     // Longest expected first, so a long job does not start last on an otherwise idle core; the
@@ -136,11 +138,12 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
             threads.spawn(|| loop {
                 let slot = next.fetch_add(1, Ordering::SeqCst);
                 if slot >= total || failed.load(Ordering::SeqCst) {
+                    share.leave();
                     break;
                 }
                 let k = order[slot];
                 let job = selected[k];
-                let budgeted = job.job.with_thread_budget(budget);
+                let budgeted = job.job.with_core_share(&share);
                 let label = format!("[{}/{total}] {} {}", k + 1, job.job.kind(), job.name);
                 let bar = multi.add(progress::bar(
                     &label,

@@ -41,6 +41,7 @@ pub mod system;
 pub mod term;
 pub mod wind;
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use glam::DVec3;
@@ -53,6 +54,7 @@ pub use wind::{Aerodynamics, Wind};
 
 use collide::Colliders;
 
+use crate::cores::Threads;
 use crate::error::{Error, Result};
 
 /// What one solver step reports.
@@ -91,6 +93,11 @@ pub trait StepSolver {
     /// [`Error::Param`] (`solver`) when the solver cannot take moving colliders (only Newton
     /// can).
     fn drive(&mut self, pins: &[DVec3], shapes: Vec<(usize, collide::Collider)>) -> Result<()>;
+
+    /// Uses up to `threads` threads from the next step on (a bake's share of the cores changes
+    /// as other jobs end); the steps' results do not depend on it. Solvers that run on one
+    /// thread ignore it.
+    fn set_threads(&mut self, _threads: usize) {}
 }
 
 /// Which solver a bake uses.
@@ -128,8 +135,9 @@ pub struct BakeParams {
     pub max_newton: usize,
     /// Gauss–Seidel sweeps after each Newton iteration ([`NewtonSolver::with_sweeps`]; 0: none).
     pub sweeps: usize,
-    /// Threads a bake may use (1: this one only; see [`NewtonSolver::with_threads`]).
-    pub threads: usize,
+    /// Threads a bake may use (1: this one only; see [`NewtonSolver::with_threads`]), read
+    /// before every frame.
+    pub threads: Threads,
     /// How Newton solves for its directions ([`NewtonSolver::with_linear_solver`]).
     pub linear_solver: LinearSolver,
     /// What the cloth collides with (none when empty).
@@ -139,6 +147,9 @@ pub struct BakeParams {
     pub self_contact: Option<f64>,
     /// Aerodynamic forces, when any.
     pub wind: Option<Wind>,
+    /// The first frame whose strain and crossings are measured ([`Simulation::quality`]): the
+    /// frames before it are simulated but not written (a character's blend-in and warm-up).
+    pub measure_from: usize,
 }
 
 impl BakeParams {
@@ -167,11 +178,15 @@ pub struct Simulation {
     pub cache: FrameCache,
     /// Per-frame solver figures (frames 1..=N): iterations summed over substeps, worst residual.
     pub frames: Vec<StepStats>,
-    /// Wall time spent stepping, seconds (measuring excluded).
+    /// Wall time spent stepping, seconds (measuring excluded where the stepping thread did it
+    /// or waited for it; a measurement beside the next frame's steps is not subtracted).
     pub seconds: f64,
-    /// Each frame's strain and crossings (frames 0..=N, the initial state first), measured on the
-    /// positions as cached (single precision) against the bodies as the solver saw them.
+    /// Each frame's strain and crossings (frames `measured_from..=N`; frame 0 is the initial
+    /// state), measured on the positions as cached (single precision) against the bodies as the
+    /// solver saw them.
     pub quality: Vec<FrameQuality>,
+    /// The first frame measured ([`BakeParams::measure_from`]).
+    pub measured_from: usize,
     /// Wall time spent measuring them, seconds.
     pub seconds_measure: f64,
 }
@@ -234,7 +249,7 @@ pub fn make_driven_solver(
                 .with_self_contact(self_contact)
                 .with_body_within_steps(within)
                 .with_sweeps(params.sweeps)
-                .with_threads(params.threads),
+                .with_threads(params.threads.now()),
             )
         }
     })
@@ -290,73 +305,84 @@ pub fn simulate_driven(
     let mut cache = FrameCache::new(all.len());
     cache.push(&all);
     let measure = BodyMeasure::new(model, params, driven.and_then(|d| d.body_shape));
-    let mut seconds_measure = 0.0;
-    let mut quality = Vec::with_capacity(params.frames + 1);
-    quality.push(measure.frame(&all, body_before.as_deref(), &mut seconds_measure));
-    let sys = solver.system();
-    let mut x = sys.gather(&all);
-    let mut v = vec![DVec3::ZERO; x.len()];
-    let guard = DivergenceGuard::new(model, params);
-    let mut air = params.wind.clone().map(|w| AirState::new(w, model));
-    let h = params.time_step();
-    let mut frames = Vec::with_capacity(params.frames);
-    for frame in 1..=params.frames {
-        let mut stats = StepStats {
-            iterations: 0,
-            residual: 0.0,
-            converged: true,
-            contacts: 0,
-            self_contacts: 0,
-        };
-        for substep in 0..params.substeps {
-            if let Some(air) = &mut air {
-                let time = ((frame - 1) * params.substeps + substep) as f64 * h;
-                air.apply(solver.system(), time, h, &x, &mut v);
-            }
-            if let Some(d) = driven {
-                let end = ((frame - 1) * params.substeps + substep + 1) as f64 * h;
-                let pose = d.drive.pose(end);
-                for (b, p) in d.drive.pins().iter().zip(&pose.pins) {
-                    all[b.particle as usize] = *p;
-                }
-                let mut shapes = Vec::new();
-                if let (Some(j), Some(before)) = (d.body_shape, &body_before) {
-                    let moving = collide::Collider::moving(before.clone(), pose.body)?;
-                    if let collide::Collider::Moving { after, .. } = &moving {
-                        body_before = Some(after.clone());
-                    }
-                    shapes.push((j, moving));
-                }
-                solver.drive(&all, shapes)?;
-            }
-            let s = solver.step(&mut x, &mut v).map_err(|e| match e {
-                // Solvers don't know frames: name the frame being computed.
-                Error::Diverged { reason, advice, .. } => Error::Diverged {
-                    frame,
-                    reason,
-                    advice,
-                },
-                e => e,
-            })?;
-            stats.iterations += s.iterations;
-            stats.residual = stats.residual.max(s.residual);
-            stats.converged &= s.converged;
-            stats.contacts = stats.contacts.max(s.contacts);
-            stats.self_contacts = stats.self_contacts.max(s.self_contacts);
+    let measure_from = params.measure_from.min(params.frames);
+    std::thread::scope(|scope| {
+        let mut quality = Measurements::new(&measure, scope, params.frames + 1 - measure_from);
+        if measure_from == 0 {
+            quality.push(&all, body_before.clone(), false);
         }
-        guard.check(frame, &x, solver.system(), stats.residual)?;
-        solver.system().scatter(&x, &mut all);
-        cache.push(&all);
-        quality.push(measure.frame(&all, body_before.as_deref(), &mut seconds_measure));
-        frames.push(stats);
-        progress(frame);
-    }
-    Ok(Simulation {
-        cache,
-        frames,
-        seconds: start.elapsed().as_secs_f64() - seconds_measure,
-        quality,
-        seconds_measure,
+        let sys = solver.system();
+        let mut x = sys.gather(&all);
+        let mut v = vec![DVec3::ZERO; x.len()];
+        let guard = DivergenceGuard::new(model, params);
+        let mut air = params.wind.clone().map(|w| AirState::new(w, model));
+        let h = params.time_step();
+        let mut frames = Vec::with_capacity(params.frames);
+        for frame in 1..=params.frames {
+            let threads = params.threads.now();
+            solver.set_threads(threads);
+            let mut stats = StepStats {
+                iterations: 0,
+                residual: 0.0,
+                converged: true,
+                contacts: 0,
+                self_contacts: 0,
+            };
+            for substep in 0..params.substeps {
+                if let Some(air) = &mut air {
+                    let time = ((frame - 1) * params.substeps + substep) as f64 * h;
+                    air.apply(solver.system(), time, h, &x, &mut v);
+                }
+                if let Some(d) = driven {
+                    let end = ((frame - 1) * params.substeps + substep + 1) as f64 * h;
+                    let pose = d.drive.pose(end);
+                    for (b, p) in d.drive.pins().iter().zip(&pose.pins) {
+                        all[b.particle as usize] = *p;
+                    }
+                    let mut shapes = Vec::new();
+                    if let (Some(j), Some(before)) = (d.body_shape, &body_before) {
+                        let moving = collide::Collider::moving(before.clone(), pose.body)?;
+                        if let collide::Collider::Moving { after, .. } = &moving {
+                            body_before = Some(after.clone());
+                        }
+                        shapes.push((j, moving));
+                    }
+                    solver.drive(&all, shapes)?;
+                }
+                let s = solver.step(&mut x, &mut v).map_err(|e| match e {
+                    // Solvers don't know frames: name the frame being computed.
+                    Error::Diverged { reason, advice, .. } => Error::Diverged {
+                        frame,
+                        reason,
+                        advice,
+                    },
+                    e => e,
+                })?;
+                stats.iterations += s.iterations;
+                stats.residual = stats.residual.max(s.residual);
+                stats.converged &= s.converged;
+                stats.contacts = stats.contacts.max(s.contacts);
+                stats.self_contacts = stats.self_contacts.max(s.self_contacts);
+            }
+            guard.check(frame, &x, solver.system(), stats.residual)?;
+            solver.system().scatter(&x, &mut all);
+            cache.push(&all);
+            if frame >= measure_from {
+                // With a second thread, measured while the next frame is stepped.
+                quality.push(&all, body_before.clone(), threads >= 2);
+            }
+            frames.push(stats);
+            progress(frame);
+        }
+        let (quality, seconds_measure, waited) = quality.finish();
+        Ok(Simulation {
+            cache,
+            frames,
+            seconds: start.elapsed().as_secs_f64() - waited,
+            quality,
+            measured_from: measure_from,
+            seconds_measure,
+        })
     })
 }
 
@@ -411,6 +437,75 @@ impl BodyMeasure {
         let q = self.cloth.frame(&written, &bodies);
         *seconds += start.elapsed().as_secs_f64();
         q
+    }
+}
+
+/// A bake's per-frame measurements: each at once, or on a second thread while the stepping
+/// thread goes on to the next frame (the same figures either way).
+struct Measurements<'scope, 'env> {
+    measure: &'env BodyMeasure,
+    scope: &'scope std::thread::Scope<'scope, 'env>,
+    pending: Option<std::thread::ScopedJoinHandle<'scope, (FrameQuality, f64)>>,
+    quality: Vec<FrameQuality>,
+    /// Seconds spent measuring, on either thread.
+    seconds: f64,
+    /// Seconds the stepping thread spent measuring, or waiting for a measurement.
+    waited: f64,
+}
+
+impl<'scope, 'env> Measurements<'scope, 'env> {
+    fn new(
+        measure: &'env BodyMeasure,
+        scope: &'scope std::thread::Scope<'scope, 'env>,
+        frames: usize,
+    ) -> Self {
+        Measurements {
+            measure,
+            scope,
+            pending: None,
+            quality: Vec::with_capacity(frames),
+            seconds: 0.0,
+            waited: 0.0,
+        }
+    }
+
+    /// Measures the next frame, `all` (model order) with `body` standing in for the moving
+    /// collider: on a second thread when `aside`.
+    fn push(&mut self, all: &[DVec3], body: Option<Arc<collide::MeshCollider>>, aside: bool) {
+        let start = Instant::now();
+        self.collect();
+        if aside {
+            let (measure, all) = (self.measure, all.to_vec());
+            self.pending = Some(self.scope.spawn(move || {
+                let mut seconds = 0.0;
+                (measure.frame(&all, body.as_deref(), &mut seconds), seconds)
+            }));
+        } else {
+            let q = self.measure.frame(all, body.as_deref(), &mut self.seconds);
+            self.quality.push(q);
+        }
+        self.waited += start.elapsed().as_secs_f64();
+    }
+
+    /// Waits for the measurement on the second thread, if any.
+    fn collect(&mut self) {
+        if let Some(pending) = self.pending.take() {
+            // A panic while measuring is passed on.
+            let (q, seconds) = pending
+                .join()
+                .unwrap_or_else(|e| std::panic::resume_unwind(e));
+            self.quality.push(q);
+            self.seconds += seconds;
+        }
+    }
+
+    /// Every frame's figures, the seconds spent measuring them, and the seconds the stepping
+    /// thread spent measuring or waiting.
+    fn finish(mut self) -> (Vec<FrameQuality>, f64, f64) {
+        let start = Instant::now();
+        self.collect();
+        self.waited += start.elapsed().as_secs_f64();
+        (self.quality, self.seconds, self.waited)
     }
 }
 

@@ -111,6 +111,8 @@ pub fn bake_on_character(
         ..job.clone()
     };
     let mut prepared = prepare_cloth(&sized)?;
+    // Only the written loops are measured (and reported).
+    prepared.params.measure_from = first_written;
     check_units(
         &prepared.model.mesh,
         character_diagonal,
@@ -271,7 +273,7 @@ pub fn bake_on_character(
         usd,
     };
     let seconds_export = export_start.elapsed().as_secs_f64();
-    let quality = quality_report(&sim, first_written, job.strain_limit);
+    let quality = quality_report(&sim, job.strain_limit);
     let mut out = report(
         &prepared,
         job,

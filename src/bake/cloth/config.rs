@@ -4,6 +4,7 @@
 //! `cli`), so both take exactly the same parameters and spellings.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use glam::DVec3;
 
@@ -12,6 +13,7 @@ use crate::cloth::material::{BendRest, MaterialPreset};
 use crate::cloth::membrane::MembraneModel;
 use crate::cloth::pins::PinSpec;
 use crate::cloth::{LinearSolver, SolverKind};
+use crate::cores::CoreShare;
 use crate::error::{Error, Result};
 use crate::export::vat::DEFAULT_MAX_WIDTH;
 use crate::export::{BasisSize, Compression, Interpolation, QuantizeMode, SparseMode, VatMode};
@@ -179,9 +181,14 @@ pub struct ClothJob {
     /// Threads the bake may use: with two, Newton's Gauss–Seidel sweeps move the two halves of a
     /// large mesh at once, and its factor's two halves are factored and solved at once, with the
     /// same result as on one [default: every core; in a scene, the cores shared among the jobs
-    /// running at once].
+    /// running at once, growing as they end].
     #[cfg_attr(feature = "cli", arg(long, value_name = "N"))]
     pub threads: Option<usize>,
+    /// Where `threads` is not given: a share of the cores among the jobs of a scene running at
+    /// once, which grows as they end (set by `scenebake run`, not read from a file).
+    #[serde(skip)]
+    #[cfg_attr(feature = "cli", arg(skip))]
+    pub share: Option<Arc<CoreShare>>,
     /// How Newton solves for each iteration's direction: `direct` (a sparse Cholesky factor,
     /// whose cost grows faster than the mesh), `multigrid` (conjugate gradients preconditioned
     /// by algebraic multigrid, each gradient's cost linear in the mesh), or `auto` (multigrid
@@ -525,6 +532,7 @@ impl Default for ClothJob {
             max_newton: crate::cloth::newton::DEFAULT_MAX_ITERATIONS,
             sweeps: None,
             threads: None,
+            share: None,
             material: None,
             stretch: None,
             bend: None,

@@ -29,6 +29,7 @@ use crate::cloth::wind::{self, Wind};
 use crate::cloth::{
     make_solver, simulate, BakeParams, ClothModel, LinearSolver, Simulation, SolverKind, StepStats,
 };
+use crate::cores::Threads;
 use crate::error::{Error, Result};
 use crate::export::basis::encode_basis_gltf;
 use crate::export::meshopt::compress_files;
@@ -384,9 +385,13 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             Switch::Off => crate::cloth::newton::DEFAULT_SWEEPS,
         }),
         linear_solver: job.linear_solver,
-        threads: job
-            .threads
-            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
+        threads: match (job.threads, &job.share) {
+            (Some(n), _) => Threads::Fixed(n),
+            (None, Some(share)) => Threads::Shared(share.clone()),
+            (None, None) => {
+                Threads::Fixed(std::thread::available_parallelism().map_or(1, |n| n.get()))
+            }
+        },
         self_contact: match job.self_contact {
             Switch::On => Some(match job.self_thickness {
                 Some(t) => positive(Param::SelfThickness, t)?,
@@ -396,6 +401,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         },
         colliders,
         wind,
+        measure_from: 0,
     };
     let (stiffness, bend_stiffness) = if material.is_some() {
         let k: Vec<f64> = model.springs.iter().map(|s| s.stiffness).collect();
@@ -934,7 +940,7 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
     };
     let exported = export(job, model, &sim.cache, options, None)?;
     let seconds_export = export_start.elapsed().as_secs_f64();
-    let quality = quality_report(&sim, 0, job.strain_limit);
+    let quality = quality_report(&sim, job.strain_limit);
     Ok(report(
         &prepared,
         job,
@@ -997,10 +1003,11 @@ fn advised(e: Error, solver: SolverKind) -> Error {
     }
 }
 
-/// The quality section of written frames `first..` of `sim` (frame `first` is the output's
-/// frame 0; it is flagged only when simulated, `first > 0`).
-pub(crate) fn quality_report(sim: &Simulation, first: usize, strain_limit: f64) -> QualityReport {
-    let q = &sim.quality[first..];
+/// The quality section of the measured frames of `sim`, its written ones: from frame
+/// `sim.measured_from`, the output's frame 0 (flagged only when simulated, a character's first
+/// written frame).
+pub(crate) fn quality_report(sim: &Simulation, strain_limit: f64) -> QualityReport {
+    let (q, first) = (&sim.quality[..], sim.measured_from);
     let flagged = |past: &dyn Fn(&FrameQuality) -> bool| -> Vec<usize> {
         q.iter()
             .enumerate()
@@ -1418,7 +1425,7 @@ fn report(
             SolverKind::Fast => 0,
             SolverKind::Newton => params.sweeps,
         },
-        threads: params.threads,
+        threads: params.threads.most(),
         linear_solver: (params.solver == SolverKind::Newton).then(|| {
             let free = model.pinned.len() - model.pinned_count();
             params.linear_solver.resolve(free)

@@ -43,7 +43,8 @@ pub struct ClothReport {
     pub max_iterations: usize,
     /// Gauss–Seidel sweeps after each Newton iteration (0 for the fast solver).
     pub sweeps: usize,
-    /// Threads the bake could use (`--threads`).
+    /// The most threads the bake could be given (`--threads`, or every core of a scene's share:
+    /// [`crate::cores::Threads::most`]).
     pub threads: usize,
     /// How Newton solved for its directions: `direct` or `multigrid` (`--linear-solver`; `None`
     /// for the fast solver).

@@ -189,7 +189,7 @@ pub fn bake_on_sequence(
         }),
     )?;
     let seconds_export = export_start.elapsed().as_secs_f64();
-    let quality = quality_report(&sim, 0, job.strain_limit);
+    let quality = quality_report(&sim, job.strain_limit);
     let mut out = report(
         &prepared,
         job,

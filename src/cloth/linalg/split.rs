@@ -153,6 +153,11 @@ impl SplitCholesky {
         };
     }
 
+    /// Whether half B runs on a helper thread.
+    pub fn has_helper(&self) -> bool {
+        self.helper.is_some()
+    }
+
     /// Columns in the top, and in each half.
     pub fn sizes(&self) -> [usize; 3] {
         [

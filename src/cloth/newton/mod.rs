@@ -377,18 +377,25 @@ impl NewtonSolver {
     /// phases split ([`SelfContact::with_threads`]): the same iterates as on one thread, to the
     /// bit, sooner. (Call it after [`NewtonSolver::with_self_contact`].)
     pub fn with_threads(mut self, threads: usize) -> Self {
-        self.threads = threads.max(1);
-        if let Some(split) = &mut self.split_factor {
-            split.use_helper(self.threads >= 2);
+        self.use_threads(threads);
+        self
+    }
+
+    /// As [`NewtonSolver::with_threads`], from the next step on (a helper thread is started or
+    /// ended only when the count crosses two).
+    fn use_threads(&mut self, threads: usize) {
+        let threads = threads.max(1);
+        let two = threads >= 2;
+        self.threads = threads;
+        if let Some(split) = self.split_factor.as_mut().filter(|s| s.has_helper() != two) {
+            split.use_helper(two);
         }
         if let Some(mg) = &mut self.multigrid {
-            mg.use_threads(self.threads >= 2);
+            mg.use_threads(two);
         }
-        self.self_contact = self
-            .self_contact
-            .take()
-            .map(|s| s.with_threads(self.threads));
-        self
+        if let Some(s) = &mut self.self_contact {
+            s.use_threads(threads);
+        }
     }
 
     /// When the single-precision factor is split ([`SplitCholesky`]): the columns of its top
@@ -594,6 +601,10 @@ impl NewtonSolver {
 impl StepSolver for NewtonSolver {
     fn system(&self) -> &ReducedSystem {
         &self.sys
+    }
+
+    fn set_threads(&mut self, threads: usize) {
+        self.use_threads(threads);
     }
 
     fn drive(&mut self, pins: &[DVec3], shapes: Vec<(usize, Collider)>) -> Result<()> {

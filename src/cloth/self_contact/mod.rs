@@ -241,8 +241,13 @@ impl SelfContact {
     /// the candidates, in order, so the pairs, their order and every time of impact are those
     /// of one thread.
     pub fn with_threads(mut self, threads: usize) -> Self {
-        self.threads = threads.max(1);
+        self.use_threads(threads);
         self
+    }
+
+    /// As [`SelfContact::with_threads`], from the next phase on.
+    pub fn use_threads(&mut self, threads: usize) {
+        self.threads = threads.max(1);
     }
 
     /// Whether the phases run on two threads now.
