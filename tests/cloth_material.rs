@@ -545,6 +545,12 @@ fn two_threads_bake_the_same_garment_as_one() {
         };
         assert_eq!(iterations(&one), iterations(&two), "{name}");
         assert_eq!(iterations(&one), iterations(&shared), "{name}");
+        // Two threads measure each frame beside the next one's steps: the same figures, in order.
+        assert_eq!(one.quality.len(), one.cache.frame_count(), "{name}");
+        assert!(
+            one.quality == two.quality && one.quality == shared.quality,
+            "{name}"
+        );
         for k in 0..one.cache.frame_count() {
             assert!(
                 one.cache.frame(k) == two.cache.frame(k),

@@ -306,83 +306,81 @@ pub fn simulate_driven(
     cache.push(&all);
     let measure = BodyMeasure::new(model, params, driven.and_then(|d| d.body_shape));
     let measure_from = params.measure_from.min(params.frames);
-    std::thread::scope(|scope| {
-        let mut quality = Measurements::new(&measure, scope, params.frames + 1 - measure_from);
-        if measure_from == 0 {
-            quality.push(&all, body_before.clone(), false);
-        }
-        let sys = solver.system();
-        let mut x = sys.gather(&all);
-        let mut v = vec![DVec3::ZERO; x.len()];
-        let guard = DivergenceGuard::new(model, params);
-        let mut air = params.wind.clone().map(|w| AirState::new(w, model));
-        let h = params.time_step();
-        let mut frames = Vec::with_capacity(params.frames);
-        for frame in 1..=params.frames {
-            let threads = params.threads.now();
-            solver.set_threads(threads);
-            let mut stats = StepStats {
-                iterations: 0,
-                residual: 0.0,
-                converged: true,
-                contacts: 0,
-                self_contacts: 0,
-            };
-            for substep in 0..params.substeps {
-                if let Some(air) = &mut air {
-                    let time = ((frame - 1) * params.substeps + substep) as f64 * h;
-                    air.apply(solver.system(), time, h, &x, &mut v);
-                }
-                if let Some(d) = driven {
-                    let end = ((frame - 1) * params.substeps + substep + 1) as f64 * h;
-                    let pose = d.drive.pose(end);
-                    for (b, p) in d.drive.pins().iter().zip(&pose.pins) {
-                        all[b.particle as usize] = *p;
-                    }
-                    let mut shapes = Vec::new();
-                    if let (Some(j), Some(before)) = (d.body_shape, &body_before) {
-                        let moving = collide::Collider::moving(before.clone(), pose.body)?;
-                        if let collide::Collider::Moving { after, .. } = &moving {
-                            body_before = Some(after.clone());
-                        }
-                        shapes.push((j, moving));
-                    }
-                    solver.drive(&all, shapes)?;
-                }
-                let s = solver.step(&mut x, &mut v).map_err(|e| match e {
-                    // Solvers don't know frames: name the frame being computed.
-                    Error::Diverged { reason, advice, .. } => Error::Diverged {
-                        frame,
-                        reason,
-                        advice,
-                    },
-                    e => e,
-                })?;
-                stats.iterations += s.iterations;
-                stats.residual = stats.residual.max(s.residual);
-                stats.converged &= s.converged;
-                stats.contacts = stats.contacts.max(s.contacts);
-                stats.self_contacts = stats.self_contacts.max(s.self_contacts);
+    let mut quality = Measurements::new(measure, params.frames + 1 - measure_from);
+    if measure_from == 0 {
+        quality.push(&all, body_before.clone(), false);
+    }
+    let sys = solver.system();
+    let mut x = sys.gather(&all);
+    let mut v = vec![DVec3::ZERO; x.len()];
+    let guard = DivergenceGuard::new(model, params);
+    let mut air = params.wind.clone().map(|w| AirState::new(w, model));
+    let h = params.time_step();
+    let mut frames = Vec::with_capacity(params.frames);
+    for frame in 1..=params.frames {
+        let threads = params.threads.now();
+        solver.set_threads(threads);
+        let mut stats = StepStats {
+            iterations: 0,
+            residual: 0.0,
+            converged: true,
+            contacts: 0,
+            self_contacts: 0,
+        };
+        for substep in 0..params.substeps {
+            if let Some(air) = &mut air {
+                let time = ((frame - 1) * params.substeps + substep) as f64 * h;
+                air.apply(solver.system(), time, h, &x, &mut v);
             }
-            guard.check(frame, &x, solver.system(), stats.residual)?;
-            solver.system().scatter(&x, &mut all);
-            cache.push(&all);
-            if frame >= measure_from {
-                // With a second thread, measured while the next frame is stepped.
-                quality.push(&all, body_before.clone(), threads >= 2);
+            if let Some(d) = driven {
+                let end = ((frame - 1) * params.substeps + substep + 1) as f64 * h;
+                let pose = d.drive.pose(end);
+                for (b, p) in d.drive.pins().iter().zip(&pose.pins) {
+                    all[b.particle as usize] = *p;
+                }
+                let mut shapes = Vec::new();
+                if let (Some(j), Some(before)) = (d.body_shape, &body_before) {
+                    let moving = collide::Collider::moving(before.clone(), pose.body)?;
+                    if let collide::Collider::Moving { after, .. } = &moving {
+                        body_before = Some(after.clone());
+                    }
+                    shapes.push((j, moving));
+                }
+                solver.drive(&all, shapes)?;
             }
-            frames.push(stats);
-            progress(frame);
+            let s = solver.step(&mut x, &mut v).map_err(|e| match e {
+                // Solvers don't know frames: name the frame being computed.
+                Error::Diverged { reason, advice, .. } => Error::Diverged {
+                    frame,
+                    reason,
+                    advice,
+                },
+                e => e,
+            })?;
+            stats.iterations += s.iterations;
+            stats.residual = stats.residual.max(s.residual);
+            stats.converged &= s.converged;
+            stats.contacts = stats.contacts.max(s.contacts);
+            stats.self_contacts = stats.self_contacts.max(s.self_contacts);
         }
-        let (quality, seconds_measure, waited) = quality.finish();
-        Ok(Simulation {
-            cache,
-            frames,
-            seconds: start.elapsed().as_secs_f64() - waited,
-            quality,
-            measured_from: measure_from,
-            seconds_measure,
-        })
+        guard.check(frame, &x, solver.system(), stats.residual)?;
+        solver.system().scatter(&x, &mut all);
+        cache.push(&all);
+        if frame >= measure_from {
+            // With a second thread, measured while the next frame is stepped.
+            quality.push(&all, body_before.clone(), threads >= 2);
+        }
+        frames.push(stats);
+        progress(frame);
+    }
+    let (quality, seconds_measure, waited) = quality.finish();
+    Ok(Simulation {
+        cache,
+        frames,
+        seconds: start.elapsed().as_secs_f64() - waited,
+        quality,
+        measured_from: measure_from,
+        seconds_measure,
     })
 }
 
@@ -442,10 +440,9 @@ impl BodyMeasure {
 
 /// A bake's per-frame measurements: each at once, or on a second thread while the stepping
 /// thread goes on to the next frame (the same figures either way).
-struct Measurements<'scope, 'env> {
-    measure: &'env BodyMeasure,
-    scope: &'scope std::thread::Scope<'scope, 'env>,
-    pending: Option<std::thread::ScopedJoinHandle<'scope, (FrameQuality, f64)>>,
+struct Measurements {
+    measure: Arc<BodyMeasure>,
+    pending: Option<std::thread::JoinHandle<(FrameQuality, f64)>>,
     quality: Vec<FrameQuality>,
     /// Seconds spent measuring, on either thread.
     seconds: f64,
@@ -453,15 +450,10 @@ struct Measurements<'scope, 'env> {
     waited: f64,
 }
 
-impl<'scope, 'env> Measurements<'scope, 'env> {
-    fn new(
-        measure: &'env BodyMeasure,
-        scope: &'scope std::thread::Scope<'scope, 'env>,
-        frames: usize,
-    ) -> Self {
+impl Measurements {
+    fn new(measure: BodyMeasure, frames: usize) -> Self {
         Measurements {
-            measure,
-            scope,
+            measure: Arc::new(measure),
             pending: None,
             quality: Vec::with_capacity(frames),
             seconds: 0.0,
@@ -475,8 +467,8 @@ impl<'scope, 'env> Measurements<'scope, 'env> {
         let start = Instant::now();
         self.collect();
         if aside {
-            let (measure, all) = (self.measure, all.to_vec());
-            self.pending = Some(self.scope.spawn(move || {
+            let (measure, all) = (Arc::clone(&self.measure), all.to_vec());
+            self.pending = Some(std::thread::spawn(move || {
                 let mut seconds = 0.0;
                 (measure.frame(&all, body.as_deref(), &mut seconds), seconds)
             }));
