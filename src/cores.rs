@@ -17,6 +17,11 @@ pub enum Threads {
     Shared(Arc<CoreShare>),
 }
 
+/// The machine's cores (1 when the system does not say).
+pub fn available() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 impl Threads {
     /// The threads the bake may use from now on.
     pub fn now(&self) -> usize {

@@ -111,7 +111,7 @@ pub fn run(args: &RunArgs, quiet: bool) -> anyhow::Result<()> {
     if let Some(path) = &args.report {
         check_writable(&[OutputFile::new(Param::Report, path)]).map_err(super::cli_error)?;
     }
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cores = scenebake::cores::available();
     let workers = match args.jobs {
         Some(0) => bail!("invalid value for --jobs: 0: must be at least 1"),
         Some(n) => n,

@@ -388,9 +388,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         threads: match (job.threads, &job.share) {
             (Some(n), _) => Threads::Fixed(n),
             (None, Some(share)) => Threads::Shared(share.clone()),
-            (None, None) => {
-                Threads::Fixed(std::thread::available_parallelism().map_or(1, |n| n.get()))
-            }
+            (None, None) => Threads::Fixed(crate::cores::available()),
         },
         self_contact: match job.self_contact {
             Switch::On => Some(match job.self_thickness {

@@ -33,7 +33,7 @@
 //! (`docs/performance.md`, "The factor's two halves on two cores").
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::sparse::linalg::cholesky::LltRef;
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use glam::DVec3;
@@ -98,8 +98,13 @@ pub(super) const CG_MAX_ITERATIONS: usize = 60;
 /// multigrid is there to avoid.
 pub(super) const MULTIGRID_CG_MAX_ITERATIONS: usize = 200;
 
-/// Every path that solves with the factor runs after a factorisation, which analyses it first.
-const ANALYSED: &str = "a factor is analysed before it is used";
+/// The factor's analysis: every path that solves with the factor runs after a factorisation,
+/// which analyses it first.
+fn analysed(symbolic: &Option<SymbolicCholesky<usize>>) -> &SymbolicCholesky<usize> {
+    symbolic
+        .as_ref()
+        .expect("a factor is analysed before it is used")
+}
 
 /// faer's workspace (which has no `Debug`).
 pub(super) struct Scratch(pub(super) MemBuffer);
@@ -198,7 +203,7 @@ impl NewtonSolver {
 
     pub(super) fn factorize_double(&mut self) -> Result<()> {
         self.analyse_factor()?;
-        let symbolic = self.symbolic.as_ref().expect(ANALYSED);
+        let symbolic = analysed(&self.symbolic);
         let dim = self.dx.len();
         let pattern =
             SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx);
@@ -257,7 +262,7 @@ impl NewtonSolver {
                 for (b, r) in self.rhs32.iter_mut().zip(&self.refine) {
                     *b = *r as f32;
                 }
-                let llt = LltRef::new(self.symbolic.as_ref().expect(ANALYSED), &self.l_values32);
+                let llt = LltRef::new(analysed(&self.symbolic), &self.l_values32);
                 let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
                 llt.solve_in_place_with_conj(
                     Conj::No,
@@ -293,7 +298,7 @@ impl NewtonSolver {
             self.factorize_double()?;
         }
         negate_into(&mut self.dx, &self.free_grad);
-        let llt = LltRef::new(self.symbolic.as_ref().expect(ANALYSED), &self.l_values);
+        let llt = LltRef::new(analysed(&self.symbolic), &self.l_values);
         let rhs = MatMut::from_column_major_slice_mut(&mut self.dx, dim, 1);
         llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.scratch.0));
         self.directions[1] += 1;
@@ -390,7 +395,7 @@ impl NewtonSolver {
             if let Some(split) = &mut self.split_factor {
                 split.solve(&mut self.rhs32);
             } else {
-                let llt = LltRef::new(self.symbolic.as_ref().expect(ANALYSED), &self.l_values32);
+                let llt = LltRef::new(analysed(&self.symbolic), &self.l_values32);
                 let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
                 llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
             }
@@ -399,7 +404,7 @@ impl NewtonSolver {
             }
         } else {
             z.copy_from_slice(r);
-            let llt = LltRef::new(self.symbolic.as_ref().expect(ANALYSED), &self.l_values);
+            let llt = LltRef::new(analysed(&self.symbolic), &self.l_values);
             let rhs = MatMut::from_column_major_slice_mut(z, dim, 1);
             llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
         }
