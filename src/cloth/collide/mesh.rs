@@ -1080,7 +1080,7 @@ mod tests {
     }
 
     /// The shipped table, `meshes/table.obj`: a 1.2 × 0.8 m top, 4 cm thick, at 0.75 m, on four
-    /// 5 cm square legs that stop 1 mm under the top (disjoint closed boxes keep the sign test
+    /// 5 cm square legs that end 1 mm under the top (disjoint closed boxes keep the sign test
     /// unambiguous). Run with `SCENEBAKE_WRITE_TABLE=1` to rewrite the file.
     #[test]
     fn table_obj_is_current() {
