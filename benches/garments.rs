@@ -22,7 +22,7 @@ use scenebake::cloth::collide::{ColliderSpec, ContactModel};
 use scenebake::cloth::pins::PinSpec;
 use scenebake::cloth::SolverKind;
 
-#[path = "../tests/common/strain.rs"]
+#[path = "../tests/it/common/strain.rs"]
 mod strain;
 use strain::edge_strain_range;
 

@@ -19,7 +19,7 @@
 //! then by conjugate gradients preconditioned with Ã), and particles that entered a collider are
 //! moved back out after each correction.
 
-use super::term::Term;
+use super::term::{bending, Term};
 use glam::DVec3;
 use sprs::CsMat;
 
@@ -260,7 +260,7 @@ impl FastSolver {
                 for j in i..4 {
                     if v[i] != PINNED && v[j] != PINNED {
                         let (r, c) = (v[i].min(v[j]) as usize, v[i].max(v[j]) as usize);
-                        let value = h2 * w[i] * w[j];
+                        let value = h2 * bending::coupling(w[i], w[j]);
                         triplets.push((r, c, if i == j || r != c { value } else { 2.0 * value }));
                     }
                 }

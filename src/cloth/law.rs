@@ -1,12 +1,12 @@
 //! The fabric's one-dimensional law, written once: a spring's tension f(|r|) with its toe in
 //! tension, its soft compression and its jamming ramp ([`spring_response`]), the energy it
 //! derives from ([`spring_energy`]), its gradient and projected Hessian block
-//! (`spring_terms`), and the same law in the form the local/global method's residual
+//! (`spring_terms`, and split for a particle's local step: `spring_local`), and the same law in the form the local/global method's residual
 //! evaluates it, scalar and AVX2 side by side (`JamRamps`, `springs_scalar`, `springs_avx2`,
 //! tested to give the same bits). The springs, the membrane's fibres and every solver take it
 //! from here.
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 use super::linalg::Lanes4;
 
@@ -128,6 +128,34 @@ fn ramp_integral2(t: f64, lo: f64, hi: f64) -> f64 {
         w * w * s.powi(4) * (0.25 - 0.1 * s)
     } else {
         0.15 * w * w + 0.5 * w * (t - hi) + 0.5 * (t - hi) * (t - hi)
+    }
+}
+
+/// One spring's part of the local step at its end a (r = xa − xb): the gradient f·u, and the
+/// projected block of [`spring_terms`] split as t·I + p·u uᵀ (t = max(f/|r|, 0), p = df/d|r| − t),
+/// returned as (f·u, t, p·u uᵀ) so that a particle's local block sums the isotropic parts of its
+/// springs before adding them once. `None` for coincident ends (no force, no direction).
+#[inline(always)]
+pub(crate) fn spring_local(
+    r: DVec3,
+    rest: f64,
+    k: f64,
+    kc: f64,
+    jam: f64,
+) -> Option<(DVec3, f64, DMat3)> {
+    let len = r.length();
+    if len > 0.0 {
+        let (f, along) = spring_response(len, rest, k, kc, jam);
+        let u = r / len;
+        let t = (f / len).max(0.0);
+        let p = along - t;
+        Some((
+            u * f,
+            t,
+            DMat3::from_cols(u * (u.x * p), u * (u.y * p), u * (u.z * p)),
+        ))
+    } else {
+        None
     }
 }
 

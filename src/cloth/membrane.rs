@@ -3,7 +3,7 @@
 //!
 //! Edge springs carry the mesh's directions into the material: the same cotton sheet swings
 //! 2.1 cm apart as a regular and as a jittered 61×61 grid, where this membrane keeps it within
-//! 0.05 mm (`tests/cloth_material.rs`). Here every triangle carries three *fibres* of the
+//! 0.05 mm (`tests/it/cloth_material.rs`). Here every triangle carries three *fibres* of the
 //! continuum through it, 60° apart in its own rest plane. A fibre's
 //! direction d (a unit vector of the rest plane) is stretched to r = F·d, with F the triangle's
 //! deformation gradient: a fixed combination r = Σᵢ wᵢ xᵢ of the corners (Σ wᵢ = 0, |r| = 1 at
@@ -221,7 +221,7 @@ impl Membrane {
     /// there to `h` (the sweeps' local step), reading the free corners' positions from
     /// `corner` (called with a corner's index 0..3).
     #[inline(always)]
-    pub(crate) fn add_local(
+    pub(crate) fn add_local_with(
         &self,
         e: usize,
         a: usize,
@@ -246,6 +246,12 @@ impl Membrane {
 }
 
 impl Term<3> for Membrane {
+    #[inline(always)]
+    fn add_local(&self, e: usize, a: usize, x: &[DVec3], g: &mut DVec3, h: &mut DMat3) {
+        let v = &self.v[e];
+        self.add_local_with(e, a, |b| x[v[b] as usize], g, h);
+    }
+
     fn len(&self) -> usize {
         self.v.len()
     }
@@ -396,7 +402,7 @@ mod tests {
             for e in 0..m.len() {
                 let v = m.vertices(e);
                 if let Some(a) = v.iter().position(|&c| c == i) {
-                    m.add_local(e, a, |c| x[v[c] as usize], &mut g, &mut h);
+                    m.add_local_with(e, a, |c| x[v[c] as usize], &mut g, &mut h);
                 }
             }
             let gi = grad[i as usize];

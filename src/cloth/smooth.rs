@@ -28,10 +28,10 @@ use glam::{DMat3, DVec3};
 
 use super::collide::barrier::BarrierPlane;
 use super::collide::contact::NewtonContact;
-use super::law::spring_response;
+use super::law::spring_local;
 use super::linalg::handoff::{wait_for, PanicGuard};
 use super::system::{ReducedSystem, PINNED};
-use super::term::Term;
+use super::term::{bending, inertia, Term};
 
 /// Models with fewer free particles than this are swept in solver order, on one thread: below
 /// it a sweep takes about as long as starting a thread (a sweep of the 8k-vertex skirt takes
@@ -457,20 +457,13 @@ impl Smoother {
         'particles: for i in range {
             let xi = x.get(i);
             let solver = self.order[i] as usize;
-            let wm = w * sys.mass[solver];
-            let mut g = (xi - y[solver]) * wm;
-            let mut diag = wm;
+            let (mut g, mut diag) = inertia::pull(xi, y[solver], w * sys.mass[solver]);
             let mut hm = DMat3::ZERO;
             let mut add = |r: DVec3, rest: f64, k: f64, kc: f64| {
-                let len = r.length();
-                if len > 0.0 {
-                    let (f, along) = spring_response(len, rest, k, kc, jam);
-                    let u = r / len;
-                    let t = (f / len).max(0.0);
-                    g += u * f;
+                if let Some((f, t, across)) = spring_local(r, rest, k, kc, jam) {
+                    g += f;
                     diag += t;
-                    let p = along - t;
-                    hm += DMat3::from_cols(u * (u.x * p), u * (u.y * p), u * (u.z * p));
+                    hm += across;
                 }
             };
             for l in &self.springs[self.spring_start[i] as usize..self.spring_start[i + 1] as usize]
@@ -486,8 +479,9 @@ impl Smoother {
             let incident =
                 &self.bends[self.bend_start[i] as usize..self.bend_start[i + 1] as usize];
             for &(s, wi) in incident {
-                g += bend_values[s as usize - bend_base] * wi;
-                diag += wi * wi;
+                let (gb, hb) = bending::corner(bend_values[s as usize - bend_base], wi);
+                g += gb;
+                diag += hb;
             }
             hm += DMat3::from_diagonal(DVec3::splat(diag));
             for &(e, a, corners) in
@@ -495,7 +489,7 @@ impl Smoother {
             {
                 let corner = |c: usize| x.get(corners[c] as usize);
                 sys.membrane
-                    .add_local(e as usize, a as usize, corner, &mut g, &mut hm);
+                    .add_local_with(e as usize, a as usize, corner, &mut g, &mut hm);
             }
             let mine = match contact {
                 Some(_) => &planes[plane_start[i] as usize..plane_start[i + 1] as usize],

@@ -519,7 +519,7 @@ impl NewtonSolver {
 
     /// Whether the line search tries twice a full step: as [`NewtonSolver::with_longer_step`]
     /// sets, but never with a body moving within the steps (the fold on the fast box in
-    /// `tests/cloth_body_sequence.rs` then cycles through four iterates at ρ 0.15–0.23 until
+    /// `tests/it/cloth_body_sequence.rs` then cycles through four iterates at ρ 0.15–0.23 until
     /// the cap; with full steps only it converges in a few).
     fn longer_steps(&self) -> bool {
         self.try_longer && self.body_within.is_none()

@@ -22,7 +22,7 @@ use crate::cloth::linalg::multigrid::Multigrid;
 use crate::cloth::linalg::split::SplitCholesky;
 use crate::cloth::smooth::SweepScratch;
 use crate::cloth::system::{BendCoupling, ReducedSystem, OPPOSITE, PINNED};
-use crate::cloth::term::{Local, Term};
+use crate::cloth::term::{bending, Local, Term};
 use crate::error::{Error, Result};
 
 /// Free particles from which Newton's factor is supernodal whatever faer's flop ratio says: the
@@ -292,7 +292,11 @@ impl NewtonSolver {
                 .zip(&bends.w)
                 .filter_map(|(v, w)| {
                     let (c, d) = opposite_split(v)?;
-                    Some((c as u32, d as u32, w[OPPOSITE.0] * w[OPPOSITE.1]))
+                    Some((
+                        c as u32,
+                        d as u32,
+                        bending::coupling(w[OPPOSITE.0], w[OPPOSITE.1]),
+                    ))
                 })
                 .collect()
         } else {
@@ -450,34 +454,36 @@ impl NewtonSolver {
         );
         add_term(&self.sys.spring_term(), &self.off, diag, x, grad, values);
         add_term(&self.sys.anchor_term(), no_pairs, diag, x, grad, values);
-        // Bending is quadratic: gradient wᵢ·(Σ wⱼxⱼ + fixed), Hessian blocks wᵢwⱼ·I.
+        // Bending's blocks are multiples of I (term::bending): only their diagonals are stored.
         let bends = &self.sys.bends;
         for (s, pairs) in self.bend_off.iter().enumerate() {
             let (v, w) = (&bends.v[s], &bends.w[s]);
             let value = bends.value(s, x);
             for i in 0..4 {
                 if v[i] != PINNED {
-                    grad[v[i] as usize] += value * w[i];
+                    let (g, h) = bending::corner(value, w[i]);
+                    grad[v[i] as usize] += g;
                     let d = &self.diag[v[i] as usize];
                     for c in 0..3 {
-                        values[d[c] as usize + c] += w[i] * w[i];
+                        values[d[c] as usize + c] += h;
                     }
                 }
             }
             for (slot, &(i, j)) in BEND_PAIRS.iter().enumerate() {
+                let h = bending::coupling(w[i], w[j]);
                 if let Some(o) = pairs[slot] {
                     for c in 0..3 {
-                        values[o[c] as usize + c] += w[i] * w[j];
+                        values[o[c] as usize + c] += h;
                     }
                 } else if v[i] != PINNED && v[i] == v[j] {
                     let d = &self.diag[v[i] as usize];
                     for c in 0..3 {
-                        values[d[c] as usize + c] += 2.0 * w[i] * w[j];
+                        values[d[c] as usize + c] += 2.0 * h;
                     }
                 } else if slot == OPPOSITE_SLOT && opposite_split(v).is_some() {
                     // Split out of the factor (BendingFactor::Split): |w_c w_d| on both
                     // diagonals, so the factored matrix is H + D, D ≥ 0.
-                    let a = (w[i] * w[j]).abs();
+                    let a = h.abs();
                     for p in [v[i], v[j]] {
                         let d = &self.diag[p as usize];
                         for c in 0..3 {

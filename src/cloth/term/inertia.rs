@@ -2,7 +2,7 @@
 //! its inertial target yᵢ ([`ReducedSystem::predict`](crate::cloth::system::ReducedSystem::predict)),
 //! s the damping's inertia scale.
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 use super::{Local, Term};
 
@@ -17,6 +17,13 @@ pub struct Inertia<'a> {
     pub weight: f64,
     /// s/(2h²), 1/s² (computed as such, not halved, so the energy has the bits it always had).
     pub half_weight: f64,
+}
+
+/// A particle's pull towards its inertial target: the gradient (x − y)·wm (N) and the diagonal
+/// block wm·I as its scalar wm (N/m), for wm = s/h²·m.
+#[inline(always)]
+pub(crate) fn pull(x: DVec3, target: DVec3, wm: f64) -> (DVec3, f64) {
+    ((x - target) * wm, wm)
 }
 
 impl Term<1> for Inertia<'_> {
@@ -35,8 +42,15 @@ impl Term<1> for Inertia<'_> {
 
     #[inline]
     fn derivatives(&self, e: usize, x: &[DVec3], local: &mut Local<1>) {
-        let wm = self.weight * self.mass[e];
-        local.gradient[0] = (x[e] - self.target[e]) * wm;
+        let (g, wm) = pull(x[e], self.target[e], self.weight * self.mass[e]);
+        local.gradient[0] = g;
         local.hessian[0][0] = [[wm, 0.0, 0.0], [0.0, wm, 0.0], [0.0, 0.0, wm]];
+    }
+
+    #[inline(always)]
+    fn add_local(&self, e: usize, _a: usize, x: &[DVec3], g: &mut DVec3, h: &mut DMat3) {
+        let (ge, wm) = pull(x[e], self.target[e], self.weight * self.mass[e]);
+        *g += ge;
+        *h += DMat3::from_diagonal(DVec3::splat(wm));
     }
 }

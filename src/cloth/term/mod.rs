@@ -11,11 +11,11 @@
 //! monomorphic per term), and the step's objective is their sum
 //! ([`super::system::ReducedSystem::objective`]).
 
-mod bending;
-mod inertia;
+pub(crate) mod bending;
+pub(crate) mod inertia;
 mod spring;
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 pub use bending::Bending;
 pub use inertia::Inertia;
@@ -63,6 +63,18 @@ pub trait Term<const N: usize> {
     /// Element `e`'s gradient and Hessian blocks at `x`, written into `local` (entries of
     /// pinned corners are unspecified).
     fn derivatives(&self, e: usize, x: &[DVec3], local: &mut Local<N>);
+
+    /// Element `e`'s part of the local step at its free corner `a`: adds its gradient there to
+    /// `g` (N) and its diagonal Hessian block (a, a) to `h` (N/m), what a Gauss–Seidel sweep
+    /// moving one particle with the others held needs. By default from
+    /// [`Term::derivatives`]; each term overrides it with the kernel the sweeps
+    /// (`cloth::smooth`) call.
+    fn add_local(&self, e: usize, a: usize, x: &[DVec3], g: &mut DVec3, h: &mut DMat3) {
+        let mut local = Local::default();
+        self.derivatives(e, x, &mut local);
+        *g += local.gradient[a];
+        *h += DMat3::from_cols_array_2d(&local.hessian[a][a]).transpose();
+    }
 
     /// The term's energy, J: the elements' in order.
     fn total_energy(&self, x: &[DVec3]) -> f64 {
@@ -145,7 +157,8 @@ pub(crate) mod tests {
 
     /// Every term of the step's objective (inertia, springs, anchors, bending, the membrane)
     /// against finite differences of itself: gradient against energy, Hessian blocks against
-    /// gradient, to 1e-5 of the element's largest.
+    /// gradient, to 1e-5 of the element's largest; and every term's local step (the sweeps'
+    /// kernel) against its gradient and the Hessian's diagonal block.
     #[test]
     fn every_term_matches_finite_differences_of_itself() {
         let (sys, x) = stretched_sheet(false);
@@ -162,14 +175,58 @@ pub(crate) mod tests {
         check_against_finite_differences(&sys.spring_term(), &x, 1e-5);
         check_against_finite_differences(&sys.anchor_term(), &x, 1e-5);
         check_against_finite_differences(&Bending(&sys.bends), &x, 1e-5);
+        check_local_against_hessian(&sys.inertia_term(&y), &x);
+        check_local_against_hessian(&sys.spring_term(), &x);
+        check_local_against_hessian(&sys.anchor_term(), &x);
+        check_local_against_hessian(&Bending(&sys.bends), &x);
         let (sys, x) = stretched_sheet(true);
         assert!(sys.membrane.len() > 50 && sys.springs.a.is_empty());
         check_against_finite_differences(&sys.membrane, &x, 1e-5);
+        check_local_against_hessian(&sys.membrane, &x);
         // The objective is the terms' sum.
         let sum = sys.inertia_term(&y).total_energy(&x)
             + Bending(&sys.bends).total_energy(&x)
             + sys.membrane.total_energy(&x);
         assert!((sys.objective(&x, &y) - sum).abs() <= 1e-12 * sum);
+    }
+
+    /// Checks every element's local step ([`Term::add_local`], the sweeps' kernel) against its
+    /// [`Term::derivatives`] at each free corner: the same gradient and the Hessian's diagonal
+    /// block, to rounding (1e-12 of the element's largest entry).
+    pub(crate) fn check_local_against_hessian<const N: usize>(term: &impl Term<N>, x: &[DVec3]) {
+        let mut local = Local::default();
+        let mut checked = 0;
+        for e in 0..term.len() {
+            term.derivatives(e, x, &mut local);
+            let v = term.vertices(e);
+            for a in (0..N).filter(|&a| v[a] != PINNED) {
+                let (mut g, mut h) = (DVec3::ZERO, DMat3::ZERO);
+                term.add_local(e, a, x, &mut g, &mut h);
+                let want = DMat3::from_cols_array_2d(&local.hessian[a][a]).transpose();
+                let scale = local.gradient[a].abs().max_element().max(1e-300);
+                let hscale = want
+                    .abs()
+                    .to_cols_array()
+                    .into_iter()
+                    .fold(1e-300, f64::max);
+                assert!(
+                    (g - local.gradient[a]).abs().max_element() <= 1e-12 * scale,
+                    "element {e} corner {a}: local gradient {g}, the term's {}",
+                    local.gradient[a]
+                );
+                assert!(
+                    (h - want)
+                        .abs()
+                        .to_cols_array()
+                        .into_iter()
+                        .fold(0.0, f64::max)
+                        <= 1e-12 * hscale,
+                    "element {e} corner {a}: local block {h}, the Hessian's diagonal block {want}"
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 0, "nothing checked");
     }
 
     /// Checks `term` at `x` against central differences of itself: every element's gradient

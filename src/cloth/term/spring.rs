@@ -1,11 +1,12 @@
 //! Springs as terms: between two free particles ([`Springs`]) and from a free particle to a
 //! pinned point ([`Anchors`]), each with the fabric's law of [`crate::cloth::law`] (the
-//! gradient and projected block of [`spring_terms`], the energy of [`spring_energy`]).
+//! gradient and projected block of [`spring_terms`], the energy of [`spring_energy`], the sweeps'
+//! local step of [`spring_local`]).
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 use super::{Local, Term};
-use crate::cloth::law::{spring_energy, spring_terms};
+use crate::cloth::law::{spring_energy, spring_local, spring_terms};
 use crate::cloth::system::{self, FreeSprings};
 
 /// The springs between free particles, at a jamming strain.
@@ -43,6 +44,27 @@ impl Term<2> for Springs<'_> {
         let minus = he.map(|row| row.map(|h| -h));
         local.hessian = [[he, minus], [minus, he]];
     }
+
+    #[inline(always)]
+    fn add_local(&self, e: usize, a: usize, x: &[DVec3], g: &mut DVec3, h: &mut DMat3) {
+        let s = self.set;
+        let (me, other) = if a == 0 {
+            (s.a[e], s.b[e])
+        } else {
+            (s.b[e], s.a[e])
+        };
+        let r = x[me as usize] - x[other as usize];
+        add_spring(r, s.rest[e], s.k[e], s.kc[e], self.jam, g, h);
+    }
+}
+
+/// One spring's local step at the end `r` points from ([`spring_local`]).
+#[inline(always)]
+fn add_spring(r: DVec3, rest: f64, k: f64, kc: f64, jam: f64, g: &mut DVec3, h: &mut DMat3) {
+    if let Some((f, t, across)) = spring_local(r, rest, k, kc, jam) {
+        *g += f;
+        *h += across + DMat3::from_diagonal(DVec3::splat(t));
+    }
 }
 
 /// The springs from free particles to pinned points, at a jamming strain.
@@ -78,5 +100,12 @@ impl Term<1> for Anchors<'_> {
         let (f, he) = spring_terms(r, an.rest[e], an.k[e], an.kc[e], self.jam);
         local.gradient[0] = f;
         local.hessian[0][0] = he;
+    }
+
+    #[inline(always)]
+    fn add_local(&self, e: usize, _a: usize, x: &[DVec3], g: &mut DVec3, h: &mut DMat3) {
+        let an = self.set;
+        let r = x[an.a[e] as usize] - an.at[e];
+        add_spring(r, an.rest[e], an.k[e], an.kc[e], self.jam, g, h);
     }
 }

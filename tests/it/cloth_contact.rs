@@ -2,7 +2,7 @@
 //! solvers. Penetration is measured with distances computed here from each collider's
 //! parameters (`common::geometry`), never with the library's own contact query.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

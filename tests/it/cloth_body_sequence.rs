@@ -2,7 +2,7 @@
 //! top rises under a sheet pushes the sheet up, the written glTF holds the body's motion (read
 //! back with the `gltf` crate), and bad sequences fail before anything is simulated.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -3,7 +3,7 @@
 //! uncompressed file's view (triangles up to a rotation of their corners, which the index codec
 //! may apply); the file declares the extension as required, with a fallback buffer. (three.js's MeshoptDecoder playing it is checked in scripts/viewer_check.sh.)
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

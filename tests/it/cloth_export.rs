@@ -1,7 +1,7 @@
 //! Cloth bakes reloaded with an independent reader (the `gltf` crate): what the file says must be
 //! what the simulator computed.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -1,7 +1,7 @@
 //! `scenebake view`: the local server a browser plays a bake from. Requests go to the binary's
 //! server on 127.0.0.1 (a free port), and what it sends is compared with the files on disk.
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;

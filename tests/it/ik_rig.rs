@@ -1,6 +1,6 @@
 //! IK on chains inside real rigged glTF files: the document survives, the tip follows the path.
 
-mod common;
+use crate::common;
 
 use common::{load, mesh_path as mesh};
 use glam::DVec3;

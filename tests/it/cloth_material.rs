@@ -2,7 +2,7 @@
 //! from the positions, independently of the solvers), the same fabric on different meshes moves
 //! alike, and the default bake agrees with a tightly converged Newton solve on a garment.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

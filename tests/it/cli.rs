@@ -1,7 +1,7 @@
 //! The command line as a user meets it: every bad input gets a clear error naming the file (or
 //! option, or scene job) and exits with a failure code, never a panic.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

@@ -2,7 +2,7 @@
 //! morph-target glTF (read back with the `gltf` crate) plays at every frame, a garment's in a
 //! character's glTF (`--rig`) included.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

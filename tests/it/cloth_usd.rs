@@ -7,7 +7,7 @@
 //! The python with `pxr` and numpy is `$SCENEBAKE_USD_PYTHON`, else `python3`; without it the
 //! comparisons are skipped with a note, except under CI (`CI` set), where that fails.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -1,7 +1,7 @@
 //! Natural joints: a pole keeps the elbow on its side, hinge and cone limits hold in every frame.
-//! Everything is checked on the exported file with an independent FK (tests/common).
+//! Everything is checked on the exported file with an independent FK (tests/it/common).
 
-mod common;
+use crate::common;
 
 use common::{load, Loaded, Tracks};
 use glam::{DQuat, DVec3};

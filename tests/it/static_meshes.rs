@@ -1,7 +1,7 @@
 //! Static meshes (the colliders) written beside the cloth: their own nodes after the cloth's,
 //! checked with an independent reader (the `gltf` crate), and the cloth's cache unchanged.
 
-mod common;
+use crate::common;
 
 use common::morph::load_morph;
 use scenebake::bake::cloth::{ClothJob, ClothSource};

@@ -3,7 +3,7 @@
 //! normalisation, stride, sparse), the frames played back with the node transform and compared
 //! with a reference simulation run through the library directly.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

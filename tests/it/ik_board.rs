@@ -1,7 +1,7 @@
 //! The drawing board: `--center` and `--normal` put the writing on any plane, for generated chains
 //! and rigs, reading left to right for someone standing at the chain's root.
 
-mod common;
+use crate::common;
 
 use glam::DVec3;
 use scenebake::bake::{bake_ik, IkJob, IkReport};

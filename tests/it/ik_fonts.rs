@@ -5,7 +5,7 @@
 //! `A` is drawn with three strokes, an accented letter is its base letter plus one more contour
 //! above it.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

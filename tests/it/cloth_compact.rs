@@ -1,7 +1,7 @@
 //! Compact caches: keyframe reduction (`--keyframe-tolerance`) and sparse morph targets
 //! (`--sparse`), checked with an independent reader (the `gltf` crate) and our own weight sampler.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -2,7 +2,7 @@
 //! polyline the tip drew (tip positions from the file's own animation by independent forward
 //! kinematics), every drawn point inside the tube, and pieces revealed no earlier than drawn.
 
-mod common;
+use crate::common;
 
 use common::geometry::Triangles;
 use common::{load, mesh_path, Loaded, Tracks};

@@ -1,6 +1,6 @@
 //! Lab-arm bakes, checked through the written glTF with an independent FK sampler.
 
-mod common;
+use crate::common;
 
 use common::{load, vec3_of};
 use glam::DVec3;

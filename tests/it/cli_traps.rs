@@ -1,7 +1,7 @@
 //! The traps a new user hit in a trial run (issue 13), each closed with the exact message the
 //! command line now prints.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

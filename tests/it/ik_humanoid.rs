@@ -4,10 +4,10 @@
 //! while it walks.
 //!
 //! Everything is checked on the exported file with the gltf crate, the independent FK of
-//! tests/common and a spherical-linear sampler of the *input* file's animation written below;
+//! tests/it/common and a spherical-linear sampler of the *input* file's animation written below;
 //! none of scenebake's chain, solver or animation code is used for the expectations.
 
-mod common;
+use crate::common;
 
 use common::{load, Loaded, Tracks};
 use glam::{DQuat, DVec3};

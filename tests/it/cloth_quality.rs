@@ -2,7 +2,7 @@
 //! the file it wrote: every pair of triangles tested (no broad phase), each with exact
 //! orientation signs, on the positions a player computes from the glTF.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -1,4 +1,4 @@
-//! Test support shared by the integration tests (each test file includes it with `mod common;`).
+//! Test support shared by the integration tests (each test module reaches it as `crate::common`).
 //!
 //! Everything here is an independent expectation, never scenebake's own code under test:
 //! - [`fk`]: node animations reloaded with the `gltf` crate and posed by our own sampler and

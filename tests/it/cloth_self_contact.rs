@@ -3,7 +3,7 @@
 //! test of every pair on the positions a player computes from the glTF; without it, the same
 //! drop passes through itself (so the test can fail).
 
-mod common;
+use crate::common;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -8,7 +8,7 @@
 //! makes), so a cache in the glTF's order, in first-use order, or one that keeps the unused
 //! position, fails here.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -2,7 +2,7 @@
 //! written file by an independent numpy evaluator (scripts/check_character.py on
 //! scripts/blender/gltf_eval.py: its own skinning, morphing and animation sampling).
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

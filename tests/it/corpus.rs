@@ -1,6 +1,6 @@
 //! Every shipped surface or volume mesh loads, agrees with an independent reader, and bakes.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -1,7 +1,7 @@
 //! The VAT and compact-cache options through the binary: command line and scene-file keys share
 //! one vocabulary (`vat`, `vat_mode`, `vat_max_width`, `keyframe_tolerance`, `sparse`).
 
-mod common;
+use crate::common;
 
 use common::cli::bin as scenebake;
 

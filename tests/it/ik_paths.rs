@@ -1,7 +1,7 @@
 //! Target paths through whole bakes: spacing, SVG and CSV inputs, the per-frame rotation limit
 //! and frame-to-frame continuity of the baked rotations.
 
-mod common;
+use crate::common;
 
 use common::load;
 use glam::{DQuat, DVec3};
