@@ -28,6 +28,7 @@ use super::collide::{Collider, Colliders, SurfacePoint};
 #[cfg(target_arch = "x86_64")]
 use super::law::springs_avx2;
 use super::law::{spring_response, springs_scalar, JamRamps, TOE_STRAIN};
+use super::linalg::cg::{self, Stop};
 use super::linalg::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
 use super::system::{FreeBends, ReducedSystem, PINNED};
 use super::{StepSolver, StepStats};
@@ -142,8 +143,8 @@ pub struct FastSolver {
     /// Particles held by a collider in the global step, with how.
     held: Vec<(u32, Hold)>,
     /// Work vectors of the held global step: residual, preconditioned residual, search
-    /// direction, correction (allocated with the colliders).
-    cg: [Vec<Lanes4>; 4],
+    /// direction, its product, correction (allocated with the colliders).
+    cg: [Vec<Lanes4>; 5],
     /// The f32 lane scales of the held global step's preconditioner (see [`solve_single`]).
     cg_scale: [f64; 4],
 }
@@ -419,7 +420,7 @@ impl FastSolver {
         };
         let (factor, scale, single) = (&self.factor, &mut self.cg_scale, &mut self.delta);
         // z = S·Ã⁻¹·r, in the factor's own precision.
-        let mut precondition = |r: &[Lanes4], z: &mut [Lanes4]| {
+        let precondition = |r: &[Lanes4], z: &mut [Lanes4]| {
             match factor {
                 GlobalFactor::Double(f) => {
                     z.copy_from_slice(r);
@@ -434,47 +435,26 @@ impl FastSolver {
             }
             filter(z);
         };
-        let [res, z, p, delta] = &mut self.cg;
+        let [res, z, p, q, delta] = &mut self.cg;
         res.copy_from_slice(&self.res);
         filter(res);
-        precondition(res, z);
-        p.copy_from_slice(z);
-        delta.fill(Lanes4::default());
-        let mut rz = dot(res, z);
-        let start = rz;
-        for _ in 0..CG_ITERATIONS {
-            // Also stops on a zero or non-finite residual.
-            if rz.is_nan() || rz <= CG_TOLERANCE * CG_TOLERANCE * start {
-                break;
-            }
-            // z doubles as q = S·A·p.
-            apply_matrix(
-                &self.ends,
-                &self.hk,
-                &self.sm,
-                (&self.sys.anchors.a, &self.hk_anchor),
-                (&self.sys.bends, self.sys.params.time_step.powi(2)),
-                p,
-                z,
-            );
-            filter(z);
-            let alpha = rz / dot(p, z);
-            for ((d, r), (p, q)) in delta
-                .iter_mut()
-                .zip(res.iter_mut())
-                .zip(p.iter().zip(z.iter()))
-            {
-                *d += *p * alpha;
-                *r -= *q * alpha;
-            }
-            precondition(res, z);
-            let rz_next = dot(res, z);
-            let beta = rz_next / rz;
-            rz = rz_next;
-            for (p, z) in p.iter_mut().zip(z.iter()) {
-                *p = *z + *p * beta;
-            }
-        }
+        let (ends, hk, sm) = (&self.ends, &self.hk, &self.sm);
+        let anchors = (&self.sys.anchors.a[..], &self.hk_anchor[..]);
+        let bends = (&self.sys.bends, self.sys.params.time_step.powi(2));
+        // q = S·A·p.
+        let product = |p: &[Lanes4], q: &mut [Lanes4]| {
+            apply_matrix(ends, hk, sm, anchors, bends, p, q);
+            filter(q);
+        };
+        let work = cg::Work { r: res, z, p, q };
+        let system = &mut cg::Closures(product, precondition);
+        cg::solve(
+            delta,
+            work,
+            system,
+            Stop::Reduction(HELD_CG_REDUCTION),
+            HELD_CG_ITERATIONS,
+        );
         for (x, d) in self.pos.iter_mut().zip(delta.iter()) {
             *x += *d;
         }
@@ -536,18 +516,13 @@ fn solve_single(
 pub const MIN_CONTACT_ITERATIONS: usize = 10;
 
 /// Conjugate-gradient iterations of a held global step at most.
-const CG_ITERATIONS: usize = 10;
+const HELD_CG_ITERATIONS: usize = 10;
 
 /// The held global step stops when the preconditioned residual norm has fallen by this factor
 /// (about four iterations on a tablecloth with 2,000 particles on the table). The outer
 /// iterations refine further; 0.1 costs half as much again for the same drape, and stopping
 /// after two iterations whatever the residual lets smooth modes of stiff cloth run away.
-const CG_TOLERANCE: f64 = 0.3;
-
-/// Σ aᵢ·bᵢ over the x, y, z lanes.
-fn dot(a: &[Lanes4], b: &[Lanes4]) -> f64 {
-    a.iter().zip(b).map(|(a, b)| a.xyz().dot(b.xyz())).sum()
-}
+const HELD_CG_REDUCTION: f64 = 0.3;
 
 /// out = A·p with A = s·M + h²·L: `sm` on the diagonal, h²k (`hk`) per spring between its
 /// `ends`, and h²k per anchor on its free end.

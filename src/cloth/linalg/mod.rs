@@ -1,8 +1,10 @@
 //! Linear algebra for the cloth solvers: sparse Cholesky factors laid out for their triangular
 //! sweeps ([`factor`]), the fill-reducing orders they are computed in ([`ordering`]), the
 //! right-hand-side lanes the sweeps run over ([`lanes`]), the factor in two halves on two threads
-//! ([`split`]), and the hand-off between those threads ([`handoff`]).
+//! ([`split`]), the hand-off between those threads ([`handoff`]), algebraic multigrid
+//! ([`multigrid`]), and the conjugate gradients every solver's iterative solves run (`cg`).
 
+pub(crate) mod cg;
 pub mod factor;
 pub(crate) mod handoff;
 pub mod lanes;

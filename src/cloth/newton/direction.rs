@@ -39,6 +39,7 @@ use faer::{Conj, MatMut, Par, Side};
 use glam::DVec3;
 
 use super::NewtonSolver;
+use crate::cloth::linalg::cg::{self, Stop, Work};
 use crate::error::{Error, Result};
 
 /// The numeric factorisation's parallelism: one thread. faer's rayon pool on both cores of our
@@ -98,6 +99,36 @@ pub(super) const CG_MAX_ITERATIONS: usize = 60;
 /// multigrid is there to avoid.
 pub(super) const MULTIGRID_CG_MAX_ITERATIONS: usize = 200;
 
+/// How Newton solves for its direction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum LinearSolver {
+    /// The direct factor below 100,000 free particles, multigrid from there.
+    #[default]
+    Auto,
+    /// A sparse Cholesky factor: its cost grows faster than the mesh (its fill).
+    Direct,
+    /// Conjugate gradients preconditioned by smoothed-aggregation algebraic multigrid: each
+    /// gradient's cost linear in the mesh.
+    Multigrid,
+}
+
+impl LinearSolver {
+    /// The solver a system of `free` particles gets: [`LinearSolver::Direct`] or
+    /// [`LinearSolver::Multigrid`].
+    pub fn resolve(self, free: usize) -> LinearSolver {
+        match self {
+            LinearSolver::Auto if free >= MULTIGRID_MIN => LinearSolver::Multigrid,
+            LinearSolver::Auto => LinearSolver::Direct,
+            kind => kind,
+        }
+    }
+}
+
+/// Free particles from which [`LinearSolver::Auto`] takes multigrid.
+pub const MULTIGRID_MIN: usize = 100_000;
+
 /// The factor's analysis: every path that solves with the factor runs after a factorisation,
 /// which analyses it first.
 fn analysed(symbolic: &Option<SymbolicCholesky<usize>>) -> &SymbolicCholesky<usize> {
@@ -143,14 +174,22 @@ pub(super) fn subtract_product(
     }
 }
 
-pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
 /// Writes −g into `out`, 3 scalars per vector.
 pub(super) fn negate_into(out: &mut [f64], g: &[DVec3]) {
     for (o, g) in out.chunks_exact_mut(3).zip(g) {
         o.copy_from_slice(&(-*g).to_array());
+    }
+}
+
+/// Newton's system for its directions: H (its product) preconditioned by H'⁻¹ or a cycle.
+struct Directions<'a>(&'a mut NewtonSolver);
+
+impl cg::System<f64> for Directions<'_> {
+    fn product(&mut self, p: &[f64], q: &mut [f64]) {
+        self.0.hessian_product(p, q);
+    }
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        self.0.precondition(r, z);
     }
 }
 
@@ -325,58 +364,32 @@ impl NewtonSolver {
     /// [`CG_MAX_ITERATIONS`]; otherwise `self.dx` holds the last finite iterate (at worst the
     /// preconditioned gradient, a descent direction).
     pub(super) fn cg_direction(&mut self) -> bool {
-        let tolerance = CG_TOLERANCE.min(0.1 * self.tolerance);
-        let [mut z, mut p, mut q] = std::mem::take(&mut self.cg);
-        let mut r = std::mem::take(&mut self.refine);
-        negate_into(&mut r, &self.free_grad);
-        self.dx.fill(0.0);
-        self.precondition(&r, &mut z);
-        p.copy_from_slice(&z);
-        let mut rz = dot(&r, &z);
-        let rhs = dot(&r, &r);
-        let mut converged = false;
+        let stop = Stop::UpdateAndResidual {
+            update: CG_TOLERANCE.min(0.1 * self.tolerance),
+            residual: CG_RESIDUAL,
+        };
         let cap = if self.held_factor == Precision::Multigrid {
             MULTIGRID_CG_MAX_ITERATIONS
         } else {
             CG_MAX_ITERATIONS
         };
-        for k in 1..=cap {
-            self.cg_count[0] += 1;
-            self.hessian_product(&p, &mut q);
-            let alpha = rz / dot(&p, &q);
-            if !(alpha.is_finite() && alpha > 0.0) {
-                if k == 1 {
-                    // Breakdown at once: fall back to the preconditioned gradient.
-                    self.dx.copy_from_slice(&z);
-                }
-                break;
-            }
-            let (mut update, mut total, mut left) = (0.0, 0.0, 0.0);
-            for (((d, ri), pi), qi) in self.dx.iter_mut().zip(&mut r).zip(&p).zip(&q) {
-                *d += alpha * pi;
-                *ri -= alpha * qi;
-                update += pi * pi;
-                total += *d * *d;
-                left += *ri * *ri;
-            }
-            if alpha * alpha * update <= tolerance * tolerance * total
-                && left <= CG_RESIDUAL * CG_RESIDUAL * rhs
-            {
-                converged = total.is_finite();
-                break;
-            }
-            self.precondition(&r, &mut z);
-            let rz_next = dot(&r, &z);
-            let beta = rz_next / rz;
-            rz = rz_next;
-            for (pi, zi) in p.iter_mut().zip(&z) {
-                *pi = zi + beta * *pi;
-            }
-        }
+        let [mut z, mut p, mut q] = std::mem::take(&mut self.cg);
+        let mut r = std::mem::take(&mut self.refine);
+        let mut dx = std::mem::take(&mut self.dx);
+        negate_into(&mut r, &self.free_grad);
+        let work = Work {
+            r: &mut r,
+            z: &mut z,
+            p: &mut p,
+            q: &mut q,
+        };
+        let out = cg::solve(&mut dx, work, &mut Directions(self), stop, cap);
+        self.cg_count[0] += out.products;
         self.cg_count[1] += 1;
         self.cg = [z, p, q];
         self.refine = r;
-        converged
+        self.dx = dx;
+        out.converged
     }
 
     /// z = H'⁻¹ r with the held factor (single or double precision), or z ≈ H'⁻¹ r by one

@@ -45,6 +45,7 @@ mod pattern;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use glam::DVec3;
 
+pub use self::direction::{LinearSolver, MULTIGRID_MIN};
 use self::direction::{Precision, Scratch};
 use self::pattern::BlockCols;
 use super::collide::contact::NewtonContact;
@@ -127,36 +128,6 @@ impl BendingFactor {
         }
     }
 }
-
-/// How Newton solves for its direction.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
-pub enum LinearSolver {
-    /// The direct factor below 100,000 free particles, multigrid from there.
-    #[default]
-    Auto,
-    /// A sparse Cholesky factor: its cost grows faster than the mesh (its fill).
-    Direct,
-    /// Conjugate gradients preconditioned by smoothed-aggregation algebraic multigrid: each
-    /// gradient's cost linear in the mesh.
-    Multigrid,
-}
-
-impl LinearSolver {
-    /// The solver a system of `free` particles gets: [`LinearSolver::Direct`] or
-    /// [`LinearSolver::Multigrid`].
-    pub fn resolve(self, free: usize) -> LinearSolver {
-        match self {
-            LinearSolver::Auto if free >= MULTIGRID_MIN => LinearSolver::Multigrid,
-            LinearSolver::Auto => LinearSolver::Direct,
-            kind => kind,
-        }
-    }
-}
-
-/// Free particles from which [`LinearSolver::Auto`] takes multigrid.
-pub const MULTIGRID_MIN: usize = 100_000;
 
 /// What [`NewtonSolver::diagnostics`] shows of the last step: per free particle, in solver
 /// order (all zeros, and none held, before the first step).

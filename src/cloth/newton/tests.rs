@@ -1,5 +1,6 @@
-use super::direction::{dot, negate_into, subtract_product};
+use super::direction::{negate_into, subtract_product};
 use super::*;
+use crate::cloth::linalg::cg::Element;
 use crate::cloth::preset::lab_cloth;
 use crate::cloth::term::Term;
 use crate::cloth::StepParams;
@@ -153,7 +154,7 @@ fn a_split_factor_gives_the_whole_factors_direction() {
             .sum::<f64>()
             .sqrt()
     };
-    let size = dot(&whole.dx, &whole.dx).sqrt();
+    let size = <f64 as Element>::dot(&whole.dx, &whole.dx).sqrt();
     let (_, gradients, directions) = split.conjugate_gradients();
     assert_eq!(directions, 1);
     assert!(
@@ -191,7 +192,7 @@ fn multigrid_gives_the_whole_factors_direction_and_analyses_a_factor_only_on_dem
     }
     assert_eq!(mg.held_factor, Precision::Multigrid);
     assert!(mg.symbolic.is_none());
-    let size = dot(&whole.dx, &whole.dx).sqrt();
+    let size = <f64 as Element>::dot(&whole.dx, &whole.dx).sqrt();
     let off = |s: &NewtonSolver| {
         s.dx.iter()
             .zip(&whole.dx)
