@@ -753,6 +753,72 @@ mod tests {
     use crate::cloth::system::ReducedSystem;
     use crate::cloth::{ClothModel, StepParams};
 
+    /// The barrier's gradient against central differences of its energy (every free
+    /// coordinate, at a state where pairs sit inside their bands), and its Gauss–Newton blocks
+    /// positive semi-definite: the finite-difference check of the terms in `cloth::term`, for
+    /// the term whose pairs change every step.
+    #[test]
+    fn the_barriers_gradient_matches_finite_differences_of_its_energy() {
+        let lab = lab_cloth(4, 100.0);
+        let pinned = lab.pinned_flags();
+        let mass = vec![0.01; lab.mesh.positions.len()];
+        let mut model = ClothModel::new(lab.mesh, lab.springs, mass, pinned).unwrap();
+        // A wavy sheet, so that pairs' normals point every way.
+        for p in &mut model.mesh.positions {
+            p.y += 0.3 * (2.0 * p.x).sin() * (1.5 * p.z).cos();
+        }
+        let sys = ReducedSystem::new(&model, StepParams::garment()).unwrap();
+        let x0 = sys.gather(model.positions());
+        let mut s = SelfContact::new(&model, &sys, 0.4);
+        s.begin_step(&x0);
+        // Pairs rest at the top of their (thinned) bands at x0; move every particle a little.
+        let x: Vec<DVec3> = x0
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                *p + 0.02
+                    * DVec3::new(
+                        (i as f64).sin(),
+                        (1.7 * i as f64).cos(),
+                        (2.3 * i as f64).sin(),
+                    )
+            })
+            .collect();
+        s.prepare_path(&x, &x);
+        let mut grad = vec![DVec3::ZERO; x.len()];
+        let mut blocks = Vec::new();
+        let active = s.add_derivatives(&x, &mut grad, |_, b| blocks.push(b));
+        assert!(active > 20, "{active} pairs in their bands");
+        let e = s.energy(&x);
+        assert!(e.is_finite() && e > 0.0);
+        let scale = grad
+            .iter()
+            .map(|g| g.abs().max_element())
+            .fold(0.0, f64::max);
+        let h = 1e-7;
+        let mut y = x.clone();
+        for i in 0..x.len() {
+            for c in 0..3 {
+                y[i][c] = x[i][c] + h;
+                let plus = s.energy(&y);
+                y[i][c] = x[i][c] - h;
+                let minus = s.energy(&y);
+                y[i][c] = x[i][c];
+                let fd = (plus - minus) / (2.0 * h);
+                assert!(
+                    (fd - grad[i][c]).abs() <= 1e-5 * scale,
+                    "particle {i} axis {c}: gradient {}, from the energy {fd}",
+                    grad[i][c]
+                );
+            }
+        }
+        for b in blocks {
+            let m = glam::DMat3::from_cols_array_2d(&b);
+            assert!(m.determinant().abs() <= 1e-9 * m.x_axis.length().max(1.0));
+            assert!(b[0][0] >= 0.0 && b[1][1] >= 0.0 && b[2][2] >= 0.0);
+        }
+    }
+
     /// A body moving within the steps moves alone: a second mesh obstacle beside it (a table
     /// under it) keeps its vertices while the body is pushed halfway, then all the way.
     #[test]
