@@ -1,5 +1,6 @@
-//! The integration tests, one module per topic, built as one test binary: linking the library
-//! into each of 32 binaries took most of a cold `cargo test --release` (docs/verification.md).
+//! The integration tests, one module per topic, built as one test binary: as 33 binaries, each
+//! linking the library, they took over half of a cold `cargo test --release` to build
+//! (CHANGELOG.md, 2026-12-07 (3)).
 //! Each module drives the public API or the `scenebake` binary and checks the result against
 //! an independent expectation (see [`common`]).
 
