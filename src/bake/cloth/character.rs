@@ -222,7 +222,8 @@ pub fn bake_on_character(
                 &options,
                 &basis,
                 host.as_ref(),
-            )?;
+            )
+            .map_err(super::basis_error)?;
             (e.morph, Some(e.basis))
         }
         (None, true) => (

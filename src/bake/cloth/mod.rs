@@ -30,7 +30,7 @@ use crate::cloth::{
     make_solver, simulate, BakeParams, ClothModel, LinearSolver, Simulation, SolverKind, StepStats,
 };
 use crate::cores::Threads;
-use crate::error::{Error, Result};
+use crate::error::{BasisProblem, Error, ForParam, Result};
 use crate::export::basis::encode_basis_gltf;
 use crate::export::meshopt::compress_files;
 use crate::export::morph::{check_cache, encode_morph_gltf_with_body, AnimatedBody};
@@ -39,7 +39,7 @@ use crate::export::pointcache::{
 };
 use crate::export::usd::{check_usd_path, encode_usd, UsdMesh, UsdOptions, UsdPoints};
 use crate::export::vat::{encode_vat, vat_paths};
-use crate::export::{BasisOptions, Compression, QuantizeMode};
+use crate::export::{BasisOptions, BasisSize, Compression, QuantizeMode};
 use crate::export::{MorphOptions, RenderFrames, VatOptions, Written};
 use crate::io::{collider, gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
 use crate::measure::FrameQuality;
@@ -329,7 +329,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         }
     };
     let material = uses_material.then_some(material);
-    let size_warning = crate::export::estimate::check_frames(
+    let size_warning = check_frames(
         frames,
         mesh.render_vertices.len(),
         job.normals == Switch::On,
@@ -637,11 +637,13 @@ fn prepare_wind(job: &ClothJob) -> Result<Option<Wind>> {
     }))
 }
 
-/// Checks the export options that need no mesh: `--keyframe-tolerance`, `--vat`,
-/// `--vat-max-width`, `--pc2`, `--mdd` and `--usd`.
+/// Checks the export options that need no mesh, once, before anything is simulated:
+/// `--keyframe-tolerance`, `--basis-tolerance`, `--max-targets` (and that it allows a fixed
+/// `--basis`), `--quantize`, `--vat`, `--vat-max-width`, `--pc2`, `--mdd` and `--usd`. The
+/// writers take these values as checked.
 ///
 /// # Errors
-/// [`Error::InvalidOption`] naming the option.
+/// [`Error::Param`] naming the option.
 pub fn check_export_options(job: &ClothJob) -> Result<()> {
     if let Some(t) = job.keyframe_tolerance {
         non_negative(Param::KeyframeTolerance, t)?;
@@ -654,6 +656,18 @@ pub fn check_export_options(job: &ClothJob) -> Result<()> {
             Param::MaxTargets,
             "0: must be at least 1",
         ));
+    }
+    if let (Some(BasisSize::Fixed(k)), Some(n)) = (job.basis, job.max_targets) {
+        if k > n {
+            return Err(Error::param_value(
+                Param::MaxTargets,
+                text!(
+                    format!("{n}: fewer than the {k} targets "),
+                    Param::Basis,
+                    " asks for"
+                ),
+            ));
+        }
     }
     if job.basis.is_none() {
         if job.basis_tolerance.is_some() {
@@ -682,7 +696,7 @@ pub fn check_export_options(job: &ClothJob) -> Result<()> {
         }
     }
     if let Some(path) = &job.vat {
-        vat_paths(path)?;
+        vat_paths(path).for_param(Param::Vat)?;
     }
     check_point_cache_options(job)?;
     if job.vat_max_width == 0 {
@@ -730,9 +744,10 @@ fn check_point_cache_options(job: &ClothJob) -> Result<()> {
     for (param, path) in caches {
         let Some(path) = path else { continue };
         match param {
-            Param::Usd => check_usd_path(path)?,
-            _ => check_point_cache_path(param, path)?,
+            Param::Usd => check_usd_path(path),
+            _ => check_point_cache_path(path),
         }
+        .for_param(param)?;
         let key = same_file_key(path);
         if let Some((other, other_path)) = others.iter().find(|(_, o)| same_file_key(o) == key) {
             return Err(Error::param_value(
@@ -857,7 +872,41 @@ pub fn output_size_warning(job: &ClothJob) -> Result<Option<Text>> {
         },
         _ => return Ok(None),
     };
-    crate::export::estimate::check_frames(frames, vertices, job.normals == Switch::On)
+    check_frames(frames, vertices, job.normals == Switch::On)
+}
+
+/// Checks a cloth bake of `frames` frames after the initial state over `vertices` render
+/// vertices ([`crate::export::estimate`]): an error naming `--frames` when the cache would not
+/// fit in a GLB, a warning (returned) when it is large.
+///
+/// # Errors
+/// [`Error::Param`] naming `--frames`.
+fn check_frames(frames: usize, vertices: usize, normals: bool) -> Result<Option<Text>> {
+    use crate::export::estimate::{cache_size, human, CacheSize};
+    match cache_size(frames, vertices, normals) {
+        CacheSize::Fits => Ok(None),
+        CacheSize::Large { bytes } => Ok(Some(text!(
+            format!(
+                "the output will be about {} ({frames} frames of {vertices} vertices); ",
+                human(bytes)
+            ),
+            Param::KeyframeTolerance,
+            " can shrink it"
+        ))),
+        CacheSize::TooLarge { bytes, most_frames } => Err(Error::param_value(
+            Param::Frames,
+            text!(
+                format!(
+                    "{frames}: {frames} frames of {vertices} vertices need about {} in memory and \
+                     in the output, over the 4.3 GB a GLB can hold; at most {most_frames} frames \
+                     fit (",
+                    human(bytes),
+                ),
+                Param::KeyframeTolerance,
+                " shrinks the file, not the bake)"
+            ),
+        )),
+    }
 }
 
 /// `--basis-tolerance` when neither it nor `--keyframe-tolerance` is given: 1 mm.
@@ -1184,7 +1233,7 @@ pub(crate) fn encode_vat_files(
         normals: job.normals == Switch::On,
         gltf,
     };
-    let encoded = encode_vat(path, frames, &options)?;
+    let encoded = encode_vat(path, frames, &options).for_param(Param::Vat)?;
     let report = VatReport {
         files: encoded.files.iter().map(|(p, _)| p.clone()).collect(),
         bytes: encoded.files.iter().map(|(_, b)| b.len() as u64).sum(),
@@ -1255,7 +1304,7 @@ pub(crate) fn encode_usd_layer(
         start_time: options.start_time,
         frames,
     };
-    let encoded = encode_usd(path, &meshes, &usd_options)?;
+    let encoded = encode_usd(path, &meshes, &usd_options).for_param(Param::Usd)?;
     let report = UsdReport {
         file: encoded.path.clone(),
         bytes: encoded.bytes.len() as u64,
@@ -1278,6 +1327,47 @@ pub(crate) fn basis_options(job: &ClothJob) -> Option<BasisOptions> {
         max_targets: job.max_targets,
         quantize: job.quantize.unwrap_or_default(),
     })
+}
+
+/// A basis writer's error in the job's words: what stands in the way of `--basis` named by the
+/// option that can change it (`--basis`, `--max-targets` or `--basis-tolerance`).
+pub(crate) fn basis_error(e: Error) -> Error {
+    let Error::Basis { problem, .. } = e else {
+        return e;
+    };
+    match problem {
+        BasisProblem::TooFewFrames { targets, available } => Error::param_value(
+            Param::Basis,
+            format!("{targets} targets: the bake has only {available} frames after frame 0"),
+        ),
+        BasisProblem::ToleranceUnmet {
+            tolerance,
+            cap,
+            best,
+            best_error,
+            max_targets,
+        } => {
+            let message = format!(
+                "{tolerance} m cannot be met with at most {cap} targets (best: {best} targets, \
+                 {best_error:.3e} m); raise it, or allow more targets"
+            );
+            match max_targets {
+                Some(n) => Error::param_value(
+                    Param::MaxTargets,
+                    text!(
+                        format!("{n}: "),
+                        Param::BasisTolerance,
+                        format!(" {message}")
+                    ),
+                ),
+                None => Error::param_value(Param::BasisTolerance, message),
+            }
+        }
+        BasisProblem::TooManyTargets { needed } => Error::param_value(
+            Param::MaxTargets,
+            format!("fewer than the {needed} targets the basis needs"),
+        ),
+    }
 }
 
 /// Refuses a per-frame morph cache of more targets than `--max-targets` allows, suggesting a
@@ -1320,7 +1410,8 @@ fn export(
     let frames = RenderFrames::new(&model.mesh, cache);
     let (morph, basis) = match basis_options(job) {
         Some(basis) => {
-            let e = encode_basis_gltf(&job.output, &model.mesh, &frames, &options, &basis)?;
+            let e = encode_basis_gltf(&job.output, &model.mesh, &frames, &options, &basis)
+                .map_err(basis_error)?;
             (e.morph, Some(e.basis))
         }
         None => {
@@ -1496,4 +1587,40 @@ pub fn convergence_warning(frames: &[StepStats], tolerance: f64) -> Option<Text>
         Param::Substeps,
         ", or see unconverged_frames"
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn flag(p: Param) -> String {
+        format!("--{}", p.key().replace('_', "-"))
+    }
+
+    #[test]
+    fn frames_past_a_glb_are_refused_naming_frames() {
+        // 961 vertices with normals: 23,064 bytes a frame; 186,217 frames fit in 4 GiB.
+        let fit = (u32::MAX as u64 / 23_064) as usize;
+        assert!(check_frames(fit - 1, 961, true).is_ok());
+        let e = check_frames(fit, 961, true).unwrap_err().to_string();
+        assert!(e.starts_with("invalid value for `frames`: "), "{e}");
+        assert!(
+            e.contains(&format!("at most {} frames fit", fit - 1)),
+            "{e}"
+        );
+        assert!(check_frames(1_000_000_000, 961, true).is_err());
+        assert_eq!(check_frames(120, 961, true).unwrap(), None);
+        assert!(check_frames(50_000, 961, true).unwrap().is_some());
+    }
+
+    /// The trial run's trap: `--frames 20000` on an 8k-vertex skirt wrote gigabytes silently.
+    #[test]
+    fn twenty_thousand_frames_of_a_skirt_warn_with_the_size() {
+        let warning = check_frames(20_000, 8121, true).unwrap().unwrap();
+        assert_eq!(
+            warning.render(&flag),
+            "the output will be about 3.9 GB (20000 frames of 8121 vertices); \
+             --keyframe-tolerance can shrink it"
+        );
+    }
 }
