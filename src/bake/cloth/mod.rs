@@ -89,7 +89,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             "0: must be at least 1",
         ));
     }
-    positive(Param::StrainLimit, job.strain_limit)?;
+    positive(job.strain_limit).for_param(Param::StrainLimit)?;
     if job.threads == Some(0) {
         return Err(Error::param_value(Param::Threads, "0: must be at least 1"));
     }
@@ -183,49 +183,41 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         }
     }
     // The labs' spring model: the preset, `--stiffness`/`--bend-stiffness`, and volumes.
-    let stiffness = positive(
-        Param::Stiffness,
-        job.stiffness.unwrap_or(if is_preset {
-            preset::defaults::STIFFNESS
-        } else {
-            defaults::STIFFNESS
-        }),
-    )?;
-    let bend_stiffness = non_negative(
-        Param::BendStiffness,
-        job.bend_stiffness.unwrap_or(if is_preset {
-            stiffness
-        } else {
-            defaults::BEND_STIFFNESS
-        }),
-    )?;
+    let stiffness = positive(job.stiffness.unwrap_or(if is_preset {
+        preset::defaults::STIFFNESS
+    } else {
+        defaults::STIFFNESS
+    }))
+    .for_param(Param::Stiffness)?;
+    let bend_stiffness = non_negative(job.bend_stiffness.unwrap_or(if is_preset {
+        stiffness
+    } else {
+        defaults::BEND_STIFFNESS
+    }))
+    .for_param(Param::BendStiffness)?;
     let material = resolve_material(job)?;
-    let damping = non_negative(
-        Param::Damping,
-        job.damping.unwrap_or(if is_preset {
-            preset::defaults::DAMPING
-        } else {
-            defaults::DAMPING
-        }),
-    )?;
-    let fps = positive(
-        Param::Fps,
-        job.fps.unwrap_or(if is_preset {
-            preset::defaults::FPS
-        } else {
-            defaults::FPS
-        }),
-    )?;
+    let damping = non_negative(job.damping.unwrap_or(if is_preset {
+        preset::defaults::DAMPING
+    } else {
+        defaults::DAMPING
+    }))
+    .for_param(Param::Damping)?;
+    let fps = positive(job.fps.unwrap_or(if is_preset {
+        preset::defaults::FPS
+    } else {
+        defaults::FPS
+    }))
+    .for_param(Param::Fps)?;
     let gravity = job.gravity.unwrap_or(DVec3::from_array(if is_preset {
         preset::defaults::GRAVITY
     } else {
         defaults::GRAVITY
     }));
     if let Some(m) = job.mass {
-        positive(Param::Mass, m)?;
+        positive(m).for_param(Param::Mass)?;
     }
     if let Some(d) = job.density {
-        positive(Param::Density, d)?;
+        positive(d).for_param(Param::Density)?;
     }
     check_export_options(job)?;
 
@@ -334,7 +326,10 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         mesh.render_vertices.len(),
         job.normals == Switch::On,
     )?;
-    for (flag, extra) in pinned.iter_mut().zip(pinned_flags(&mesh, &job.pin)?) {
+    for (flag, extra) in pinned
+        .iter_mut()
+        .zip(pinned_flags(&mesh, &job.pin).for_param(Param::Pin)?)
+    {
         *flag |= extra;
     }
     let mass = match (job.mass, job.density, is_preset) {
@@ -374,7 +369,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         gravity,
         solver: job.solver,
         iterations: job.max_iterations.unwrap_or(job.iterations),
-        tolerance: non_negative(Param::Tolerance, job.tolerance)?,
+        tolerance: non_negative(job.tolerance).for_param(Param::Tolerance)?,
         max_newton: job.max_iterations.unwrap_or(job.max_newton),
         // The sweeps do not see the cloth's pairs: cut where they would pass through, their
         // passes leave pairs at the bottom of their barriers, and Newton stalls there (the draped
@@ -392,7 +387,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         },
         self_contact: match job.self_contact {
             Switch::On => Some(match job.self_thickness {
-                Some(t) => positive(Param::SelfThickness, t)?,
+                Some(t) => positive(t).for_param(Param::SelfThickness)?,
                 None => colliders.thickness,
             }),
             Switch::Off => None,
@@ -507,10 +502,10 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
     let preset = job.material.unwrap_or(DEFAULT_MATERIAL);
     let mut m = preset.material();
     if let Some(v) = job.stretch {
-        m.stretch = positive(Param::Stretch, v)?;
+        m.stretch = positive(v).for_param(Param::Stretch)?;
     }
     if let Some(v) = job.bend {
-        m.bend = non_negative(Param::Bend, v)?;
+        m.bend = non_negative(v).for_param(Param::Bend)?;
     }
     if let Some(v) = job.compression {
         if !(0.0..=1.0).contains(&v) {
@@ -538,7 +533,7 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
         m.bend_rest = r;
     }
     if let Some(d) = job.density {
-        m.density = positive(Param::Density, d)?;
+        m.density = positive(d).for_param(Param::Density)?;
     }
     Ok(MaterialReport {
         preset,
@@ -548,7 +543,7 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
 
 /// Applies `--up`, `--scale` and `--translate` to a loaded body.
 fn place(mesh: &mut Mesh, job: &ClothJob) -> Result<()> {
-    let scale = positive(Param::Scale, job.scale)?;
+    let scale = positive(job.scale).for_param(Param::Scale)?;
     let translate = job.translate.unwrap_or(DVec3::ZERO);
     if !translate.is_finite() {
         return Err(Error::param_value(Param::Translate, "must be finite"));
@@ -572,6 +567,7 @@ fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
         .collider
         .iter()
         .map(|spec| {
+            // The loader's and the specification's value errors are the collider's.
             Collider::from_spec(spec, &|path, part| {
                 let mut mesh = collider::load_collider_mesh(path, part)?;
                 // A collider file comes from the same tool as the input: turned by --up too
@@ -583,16 +579,17 @@ fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
                 }
                 MeshCollider::from_mesh(path, mesh.positions, mesh.triangles)
             })
+            .for_param(Param::Collider)
         })
         .collect::<Result<Vec<_>>>()?;
     let thickness = match job.thickness {
-        Some(t) => positive(Param::Thickness, t)?,
+        Some(t) => positive(t).for_param(Param::Thickness)?,
         None => DEFAULT_THICKNESS_FRACTION * mean_edge_length(model),
     };
     Ok(Colliders {
         shapes,
         thickness,
-        friction: non_negative(Param::Friction, job.friction)?,
+        friction: non_negative(job.friction).for_param(Param::Friction)?,
         // The fast solver's filtered solve holds particles at the thickness, as the constraint
         // does: the report says so.
         model: match job.solver {
@@ -630,9 +627,9 @@ fn prepare_wind(job: &ClothJob) -> Result<Option<Wind>> {
     }
     Ok(Some(Wind {
         velocity: job.wind.unwrap_or(DVec3::ZERO),
-        drag: non_negative(Param::Drag, job.drag.unwrap_or(wind::DEFAULT_DRAG))?,
-        lift: non_negative(Param::Lift, job.lift.unwrap_or(wind::DEFAULT_LIFT))?,
-        turbulence: non_negative(Param::Turbulence, job.turbulence)?,
+        drag: non_negative(job.drag.unwrap_or(wind::DEFAULT_DRAG)).for_param(Param::Drag)?,
+        lift: non_negative(job.lift.unwrap_or(wind::DEFAULT_LIFT)).for_param(Param::Lift)?,
+        turbulence: non_negative(job.turbulence).for_param(Param::Turbulence)?,
         seed: job.seed,
     }))
 }
@@ -646,10 +643,10 @@ fn prepare_wind(job: &ClothJob) -> Result<Option<Wind>> {
 /// [`Error::Param`] naming the option.
 pub fn check_export_options(job: &ClothJob) -> Result<()> {
     if let Some(t) = job.keyframe_tolerance {
-        non_negative(Param::KeyframeTolerance, t)?;
+        non_negative(t).for_param(Param::KeyframeTolerance)?;
     }
     if let Some(m) = job.basis_tolerance {
-        non_negative(Param::BasisTolerance, m)?;
+        non_negative(m).for_param(Param::BasisTolerance)?;
     }
     if job.max_targets == Some(0) {
         return Err(Error::param_value(
@@ -843,8 +840,11 @@ pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
             &obj::ObjOptions {
                 object: job.object.clone(),
             },
-        ),
-        Some("gltf") | Some("glb") => load_gltf_mesh(path, job.mesh.as_deref()),
+        )
+        .for_param(Param::Object),
+        Some("gltf") | Some("glb") => {
+            load_gltf_mesh(path, job.mesh.as_deref()).for_param(Param::Mesh)
+        }
         Some("tet") => load_tet(path),
         _ => Err(Error::invalid(
             path,
