@@ -3,6 +3,12 @@
 //! Every variant carries what a user needs to fix the input: the file, the line or element, the
 //! option, and what was wrong. Messages are lowercase with no trailing period; the binary prints
 //! them behind `error:`.
+//!
+//! Only the job layer ([`crate::bake`], [`crate::scene`], the binary) knows which job parameter
+//! a value came from. Lower layers (loaders, models, solvers, writers) report a bad value as an
+//! [`Error::Value`], or a problem of their own kind ([`Error::Basis`], [`Error::HingeAxis`]...),
+//! and the job layer names the parameter: [`Error::for_param`] (or [`ForParam::for_param`] on a
+//! result) makes a value error an [`Error::Param`].
 
 use std::fmt;
 use std::path::PathBuf;
@@ -55,6 +61,12 @@ pub enum Error {
         font: String,
         /// The character.
         glyph: char,
+    },
+    /// A value is invalid, reported by a layer that does not know which job parameter it came
+    /// from; the job layer makes it an [`Error::Param`] ([`Error::for_param`]).
+    Value {
+        /// What was wrong with the value, and the expected form.
+        message: Text,
     },
     /// A job parameter has an invalid value, or does not go with the others given.
     Param {
@@ -120,6 +132,34 @@ pub enum Error {
         /// What was wrong.
         message: Text,
     },
+    /// A morph basis cannot be written as asked for this bake.
+    Basis {
+        /// The output file.
+        path: PathBuf,
+        /// What stands in the way.
+        problem: BasisProblem,
+    },
+    /// A glTF given as a mesh sequence has no mesh animated by morph-target weights.
+    NoMorphAnimation {
+        /// The glTF file.
+        path: PathBuf,
+        /// The node or mesh asked for, when one was.
+        part: Option<String>,
+    },
+    /// The frame rate of a glTF mesh sequence is unknown: its keys are not evenly spaced and the
+    /// file records none, so the caller must give one.
+    UnknownRate {
+        /// The glTF file.
+        path: PathBuf,
+    },
+    /// A hinge limit without an axis on a joint that is straight in the rest pose, with no pole
+    /// to tell its bend.
+    HingeAxis {
+        /// The limit specification as given.
+        spec: String,
+        /// The joint.
+        joint: String,
+    },
     /// A scene file is malformed: unknown keys, wrong types, no jobs.
     Scene {
         /// The scene file.
@@ -159,6 +199,7 @@ impl Error {
                 v(Param::Text),
                 u32::from(*glyph)
             ),
+            Error::Value { message } => format!("invalid value: {}", message.render(v)),
             Error::Param { param, message } => {
                 format!("invalid value for {}: {}", v(*param), message.render(v))
             }
@@ -202,6 +243,23 @@ impl Error {
                 path.display(),
                 v(Param::Chain)
             ),
+            Error::Basis { path, problem } => format!("{}: {problem}", path.display()),
+            Error::NoMorphAnimation { path, part } => format!(
+                "`{}`: no mesh{} animated by morph-target weights (a skinned character is a \
+                 rig, not a mesh sequence)",
+                path.display(),
+                part.as_ref()
+                    .map_or_else(String::new, |p| format!(" named `{p}`"))
+            ),
+            Error::UnknownRate { path } => format!(
+                "`{}`: the keys are not evenly spaced and the file records no frame rate; give \
+                 the rate to sample at",
+                path.display()
+            ),
+            Error::HingeAxis { spec, joint } => format!(
+                "limit `{spec}`: cannot tell the bend axis of `{joint}`: it is straight in the \
+                 rest pose; give a pole or the axis as JOINT:hinge:MIN..MAX:X,Y,Z"
+            ),
             Error::Scene { path, job, message } => match job {
                 Some(job) => format!("{}: {job}: {message}", path.display()),
                 None => format!("{}: {message}", path.display()),
@@ -209,11 +267,12 @@ impl Error {
         }
     }
 
-    /// What is wrong, without the "invalid value for …" lead of a [`Error::Param`] (for front
-    /// ends that name the option themselves); parameters named by their scene keys.
+    /// What is wrong, without the "invalid value for …" lead of a [`Error::Param`] or
+    /// [`Error::Value`] (for front ends that name the option themselves); parameters named by
+    /// their scene keys.
     pub fn detail(&self) -> String {
         match self {
-            Error::Param { message, .. } => message.to_string(),
+            Error::Param { message, .. } | Error::Value { message } => message.to_string(),
             other => other.to_string(),
         }
     }
@@ -244,6 +303,7 @@ impl std::error::Error for Error {
             Error::Gltf { source, .. } => Some(source),
             Error::Json { source, .. } => Some(source),
             Error::ColliderMesh { problem, .. } => Some(problem),
+            Error::Basis { problem, .. } => Some(problem),
             _ => None,
         }
     }
@@ -305,6 +365,43 @@ pub enum ColliderMeshProblem {
     },
 }
 
+/// Why a morph basis cannot be written (see [`Error::Basis`]).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BasisProblem {
+    /// A fixed number of targets larger than the frames after frame 0.
+    #[error("{targets} targets: the bake has only {available} frames after frame 0")]
+    TooFewFrames {
+        /// The targets asked for.
+        targets: usize,
+        /// The frames after frame 0.
+        available: usize,
+    },
+    /// No basis within the target cap keeps every frame within the tolerance.
+    #[error(
+        "a tolerance of {tolerance} m cannot be met with at most {cap} targets (best: {best} \
+         targets, {best_error:.3e} m); raise it, or allow more targets"
+    )]
+    ToleranceUnmet {
+        /// The tolerance, m.
+        tolerance: f64,
+        /// The most targets tried.
+        cap: usize,
+        /// The target count that came closest.
+        best: usize,
+        /// Its largest error, m.
+        best_error: f64,
+        /// The allowed maximum, when it (not the frame count) set the cap.
+        max_targets: Option<usize>,
+    },
+    /// The basis needs more targets than allowed.
+    #[error("the basis needs {needed} targets, more than allowed")]
+    TooManyTargets {
+        /// The targets the basis needs.
+        needed: usize,
+    },
+}
+
 /// How option `p` helps a diverging simulation, for [`Error::Diverged`]'s advice, named by `v`.
 fn advise(p: Param, v: Vocabulary<'_>) -> String {
     match p {
@@ -346,5 +443,64 @@ impl Error {
             param,
             message: message.into(),
         }
+    }
+
+    /// Shorthand for [`Error::Value`].
+    pub fn value(message: impl Into<Text>) -> Self {
+        Error::Value {
+            message: message.into(),
+        }
+    }
+
+    /// The error with the parameter the value came from: an [`Error::Value`] becomes an
+    /// [`Error::Param`] naming `param`; every other error is returned as it is.
+    pub fn for_param(self, param: Param) -> Self {
+        match self {
+            Error::Value { message } => Error::Param { param, message },
+            other => other,
+        }
+    }
+}
+
+/// [`Error::for_param`] on a result's error.
+pub trait ForParam<T> {
+    /// The result, a value error naming `param`.
+    ///
+    /// # Errors
+    /// The result's error, an [`Error::Value`] made an [`Error::Param`].
+    fn for_param(self, param: Param) -> Result<T>;
+}
+
+impl<T> ForParam<T> for Result<T> {
+    fn for_param(self, param: Param) -> Result<T> {
+        self.map_err(|e| e.for_param(param))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn value_errors_take_the_parameter_the_job_names() {
+        let flag = |p: Param| format!("--{}", p.key().replace('_', "-"));
+        let e = Error::value("`x`: expected a number");
+        assert_eq!(e.param(), None);
+        assert_eq!(e.to_string(), "invalid value: `x`: expected a number");
+        assert_eq!(e.detail(), "`x`: expected a number");
+        let e = e.for_param(Param::Pin);
+        assert_eq!(e.param(), Some(Param::Pin));
+        assert_eq!(
+            e.render(&flag),
+            "invalid value for --pin: `x`: expected a number"
+        );
+        // Only value errors take a parameter: others keep their own.
+        let r: Result<()> = Err(Error::param_value(Param::Frames, "0: must be at least 1"));
+        assert_eq!(
+            r.for_param(Param::Pin).unwrap_err().param(),
+            Some(Param::Frames)
+        );
+        let io = Error::io("a.obj", std::io::Error::other("gone")).for_param(Param::Pin);
+        assert!(matches!(io, Error::Io { .. }), "{io}");
     }
 }

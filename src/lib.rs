@@ -16,7 +16,9 @@
 //!   [`data::Chain`] and its poses); `export` imports neither `cloth` nor `ik`, and neither of them
 //!   imports `export`.
 //! - Errors ([`Error`]) name the file, element and [`Param`]eter; a front end words them with
-//!   [`Error::render`].
+//!   [`Error::render`]. Only the job layer ([`bake`], [`scene`], the binary) speaks [`Param`]:
+//!   the layers below report a bad value as [`Error::Value`] (or an error of their own kind) and
+//!   the job, which knows where the value came from, names it ([`Error::for_param`]).
 //!
 //! Units are SI (metres, seconds, kilograms); glTF's frame is +Y up, right-handed.
 #![warn(missing_docs)]

@@ -1,19 +1,24 @@
 //! Parsers for the small textual values that options take (`X,Y,Z` vectors, pin specs...), shared
 //! by the command line and scene files so both accept exactly the same spellings.
+//!
+//! They know values, not the options that take them: a bad value is an [`Error::Value`], to which
+//! the job layer, knowing the option, attaches it ([`Error::for_param`]). Lower layers parse their
+//! specifications (pins, colliders, limits) with them too.
 
 use glam::DVec3;
 
 use crate::error::{Error, Result};
-use crate::param::Param;
 
-/// Parses `N` comma-separated finite numbers; `option` is the parameter named in errors.
-pub fn parse_numbers<const N: usize>(option: Param, text: &str, form: &str) -> Result<[f64; N]> {
+/// Parses `N` comma-separated finite numbers of the form `form` (named in errors).
+///
+/// # Errors
+/// [`Error::Value`] quoting `text`.
+pub fn parse_numbers<const N: usize>(text: &str, form: &str) -> Result<[f64; N]> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     if parts.len() != N {
-        return Err(Error::param_value(
-            option,
-            format!("`{text}`: expected {N} comma-separated numbers ({form})"),
-        ));
+        return Err(Error::value(format!(
+            "`{text}`: expected {N} comma-separated numbers ({form})"
+        )));
     }
     let mut out = [0.0; N];
     for (slot, p) in out.iter_mut().zip(&parts) {
@@ -22,50 +27,50 @@ pub fn parse_numbers<const N: usize>(option: Param, text: &str, form: &str) -> R
             .ok()
             .filter(|v| v.is_finite())
             .ok_or_else(|| {
-                Error::param_value(
-                    option,
-                    format!("`{text}`: `{p}` is not a finite number ({form})"),
-                )
+                Error::value(format!("`{text}`: `{p}` is not a finite number ({form})"))
             })?;
     }
     Ok(out)
 }
 
 /// Parses an `X,Y,Z` vector.
-pub fn parse_vec3(option: Param, text: &str) -> Result<DVec3> {
-    parse_numbers::<3>(option, text, "X,Y,Z").map(DVec3::from_array)
+///
+/// # Errors
+/// As [`parse_numbers`].
+pub fn parse_vec3(text: &str) -> Result<DVec3> {
+    parse_numbers::<3>(text, "X,Y,Z").map(DVec3::from_array)
 }
 
 /// Checks that a number is finite and strictly positive.
-pub fn positive(option: Param, value: f64) -> Result<f64> {
+///
+/// # Errors
+/// [`Error::Value`] otherwise.
+pub fn positive(value: f64) -> Result<f64> {
     if value.is_finite() && value > 0.0 {
         Ok(value)
     } else {
-        Err(Error::param_value(
-            option,
-            format!("{value}: must be a positive number"),
-        ))
+        Err(Error::value(format!("{value}: must be a positive number")))
     }
 }
 
 /// Checks that a number is finite and not negative.
-pub fn non_negative(option: Param, value: f64) -> Result<f64> {
+///
+/// # Errors
+/// [`Error::Value`] otherwise.
+pub fn non_negative(value: f64) -> Result<f64> {
     if value.is_finite() && value >= 0.0 {
         Ok(value)
     } else {
-        Err(Error::param_value(
-            option,
-            format!("{value}: must be zero or a positive number"),
-        ))
+        Err(Error::value(format!(
+            "{value}: must be zero or a positive number"
+        )))
     }
 }
 
 /// `X,Y,Z` as a command-line value parser and for scene files: the error is the bare reason
 /// (clap and the TOML reader say which option or key it belongs to).
 pub fn vec3_value(text: &str) -> std::result::Result<DVec3, String> {
-    parse_numbers::<3>(Param::Gravity, text, "X,Y,Z")
-        .map(DVec3::from_array)
-        .map_err(|e| e.detail())
+    parse_vec3(text).map_err(|e| e.detail())
 }
 
 /// A value parsed by its `FromStr`, as a command-line value parser: the error is the bare
@@ -248,12 +253,13 @@ mod tests {
     #[test]
     fn vectors_parse_and_reject_garbage() {
         assert_eq!(
-            parse_vec3(Param::Gravity, "0, -9.81,0").unwrap(),
+            parse_vec3("0, -9.81,0").unwrap(),
             DVec3::new(0.0, -9.81, 0.0)
         );
         for bad in ["1,2", "1,2,3,4", "a,b,c", "1,nan,2", ""] {
-            let e = parse_vec3(Param::Gravity, bad).unwrap_err();
-            assert_eq!(e.param(), Some(Param::Gravity), "{e}");
+            let e = parse_vec3(bad).unwrap_err();
+            assert!(matches!(e, Error::Value { .. }), "{e}");
+            assert!(e.detail().starts_with(&format!("`{bad}`: ")), "{e}");
         }
     }
 }

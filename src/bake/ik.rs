@@ -12,7 +12,7 @@ use std::time::Instant;
 use glam::{DQuat, DVec2, DVec3};
 
 use crate::data::animation::{Clip, Skeleton, Trs};
-use crate::error::{Error, Result};
+use crate::error::{Error, ForParam, Result};
 use crate::export::skin::NodeFrames;
 use crate::export::skin::{write_chain_gltf, write_rig_gltf, IkFrames, Trail};
 use crate::ik::chain::{Chain, Joint, Pose, ROOT_HEIGHT_FRACTION};
@@ -326,7 +326,7 @@ struct BaseLayer {
 impl BaseLayer {
     fn new(doc: &RigDocument, chain_nodes: &[usize], spec: &str) -> Result<Self> {
         let skeleton = doc.skeleton()?;
-        let clip = doc.clip(spec, Param::BaseAnimation)?;
+        let clip = doc.clip(spec).for_param(Param::BaseAnimation)?;
         let animated = clip.animated_nodes(skeleton.len());
         let mut keyed = crate::export::skin::posed_nodes(&doc.root, chain_nodes);
         keyed.extend((0..animated.len()).filter(|&i| animated[i]));
@@ -391,7 +391,7 @@ struct Setup {
 
 fn positive_opt(option: Param, v: Option<f64>) -> Result<()> {
     if let Some(v) = v {
-        crate::spec::positive(option, v)?;
+        crate::spec::positive(v).for_param(option)?;
     }
     Ok(())
 }
@@ -443,15 +443,30 @@ fn setup_chain(job: &IkJob) -> Result<Setup> {
         });
     }
     if let Some(n) = job.joints {
+        if n < 2 {
+            return Err(Error::param_value(
+                Param::Joints,
+                format!("{n}: a chain needs at least 2 joints"),
+            ));
+        }
+        let length = crate::spec::positive(job.length.unwrap_or(2.6)).for_param(Param::Length)?;
         return Ok(Setup {
-            chain: Chain::straight(n, job.length.unwrap_or(2.6))?,
+            chain: Chain::straight(n, length)?,
             rig: None,
             lab: false,
         });
     }
     let path = job.rig.as_ref().expect("one source");
     let doc = RigDocument::load(path)?;
-    let rc = doc.chain(job.chain.as_deref().expect("checked"))?;
+    let spec = job.chain.as_deref().expect("checked");
+    let rc = doc
+        .chain(spec)
+        .map_err(|e| match e {
+            // A degenerate chain, named with the option that picked it.
+            Error::Chain(m) => Error::invalid(path, text!(Param::Chain, format!(" {spec}: {m}"))),
+            e => e,
+        })
+        .for_param(Param::Chain)?;
     Ok(Setup {
         chain: rc.chain,
         rig: Some((doc, rc.nodes)),
@@ -596,8 +611,9 @@ fn build_strokes(
     let max_height = 2.0 * default_radius(false);
     if let Some(text) = &job.text {
         let font =
-            crate::io::drawing::load_font(job.font.as_deref().unwrap_or(path::font::DEFAULT))?;
-        let laid = path::font::layout(&font, text)?;
+            crate::io::drawing::load_font(job.font.as_deref().unwrap_or(path::font::DEFAULT))
+                .for_param(Param::Font)?;
+        let laid = path::font::layout(&font, text).for_param(Param::Text)?;
         let scale = match job.size {
             Some(h) => h / font.cap_height(),
             None => fit_scale(laid.extent, disc, max_height),
@@ -678,15 +694,15 @@ fn default_trail_radius(targets: &[PenTarget], reach: f64) -> f64 {
 /// `progress(done, total)` is called after each solved frame.
 ///
 /// # Errors
-/// [`Error::InvalidOption`] for inconsistent options; load errors for `--rig`, `--points`,
+/// [`Error::Param`] for inconsistent options; load errors for `--rig`, `--points`,
 /// `--svg`; [`Error::UnknownJoint`] / [`Error::JointNotBelow`] for a bad `--chain`; write
 /// errors, an output that cannot be written checked first ([`super::outputs::check_writable`]).
 /// Frames that do not converge are reported, not errors.
 pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<IkReport> {
     let t0 = Instant::now();
     super::outputs::check_writable(&super::outputs::ik_outputs(job))?;
-    crate::spec::positive(Param::Fps, job.fps)?;
-    crate::spec::positive(Param::Tolerance, job.tolerance)?;
+    crate::spec::positive(job.fps).for_param(Param::Fps)?;
+    crate::spec::positive(job.tolerance).for_param(Param::Tolerance)?;
     if job.max_iterations == 0 {
         return Err(Error::param_value(
             Param::MaxIterations,
@@ -699,7 +715,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
     positive_opt(Param::Spacing, job.spacing)?;
     positive_opt(Param::TrailRadius, job.trail_radius)?;
     if let Some(l) = job.lift {
-        crate::spec::non_negative(Param::Lift, l)?;
+        crate::spec::non_negative(l).for_param(Param::Lift)?;
     }
     let mut setup = setup_chain(job)?;
     let layer = match (&job.base_animation, &setup.rig) {
@@ -722,14 +738,32 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
         None => None,
     };
     let chain = &setup.chain;
-    let mut constraints = Constraints::from_specs(chain, job.pole, &job.limit)?;
+    if job.pole.is_some_and(|p| !p.is_finite()) {
+        return Err(Error::param_value(Param::Pole, "must be finite"));
+    }
+    let mut constraints = Constraints::from_specs(chain, job.pole, &job.limit)
+        .map_err(|e| match e {
+            Error::HingeAxis { spec, joint } => Error::param_value(
+                Param::Limit,
+                text!(
+                    format!(
+                        "`{spec}`: cannot tell the bend axis of `{joint}`: it is straight in the \
+                         rest pose; give "
+                    ),
+                    Param::Pole,
+                    " or the axis as JOINT:hinge:MIN..MAX:X,Y,Z"
+                ),
+            ),
+            e => e,
+        })
+        .for_param(Param::Limit)?;
     if let Some(axis) = job.tip_axis {
         let pen = match &setup.rig {
             Some((doc, nodes)) => tip_pen(doc, nodes[nodes.len() - 1]),
             None => None,
         }
         .unwrap_or_else(|| TipAxis::continuing(chain));
-        constraints.tip_axis = Some(TipAxis::new(axis, pen)?);
+        constraints.tip_axis = Some(TipAxis::new(axis, pen).for_param(Param::TipAxis)?);
     }
     let rest = start.unwrap_or_else(|| chain.rest_pose());
     let reach = chain.reach(&rest);
@@ -762,7 +796,7 @@ pub fn bake_ik(job: &IkJob, progress: &mut dyn FnMut(usize, usize)) -> Result<Ik
                 text!("only applies with ", Param::PenSpeed),
             ));
         }
-        crate::spec::non_negative(Param::Ease, e)?;
+        crate::spec::non_negative(e).for_param(Param::Ease)?;
     }
     let spacing = match job.pen_speed {
         Some(v) => v / job.fps,

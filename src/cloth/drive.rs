@@ -30,8 +30,6 @@ use super::collide::{Collider, MeshCollider};
 use crate::data::animation::{Clip, Skeleton, SkinnedMesh, Trs};
 use crate::data::MeshSequence;
 use crate::error::{Error, Result};
-use crate::param::Param;
-use crate::text;
 
 /// A source of body positions (and pin positions) over simulation time.
 pub trait Drive: std::fmt::Debug {
@@ -139,7 +137,7 @@ impl CharacterDrive {
     /// `scale` is metres per document unit, `blend_in` seconds.
     ///
     /// # Errors
-    /// [`Error::Param`] (`animation`) when the animation has no duration.
+    /// [`Error::Value`] when the animation has no duration (the job names the option).
     pub fn new(
         skeleton: Skeleton,
         clip: Clip,
@@ -148,10 +146,10 @@ impl CharacterDrive {
         blend_in: f64,
     ) -> Result<Self> {
         if clip.duration().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-            return Err(Error::param_value(
-                Param::Animation,
-                format!("`{}` has no duration (one key or none)", clip.name),
-            ));
+            return Err(Error::value(format!(
+                "`{}` has no duration (one key or none)",
+                clip.name
+            )));
         }
         let posed = clip.animated_nodes(skeleton.len());
         let rest_inverse = skeleton
@@ -250,16 +248,12 @@ impl CharacterDrive {
     /// each to the influences of the nearest body point (see the module documentation).
     ///
     /// # Errors
-    /// [`Error::Param`] (`rig`) when the character has no skinned mesh to bind to.
+    /// [`Error::Value`] when the character has no skinned mesh to bind to ([`Self::has_body`];
+    /// the job checks it first, naming its options).
     pub fn bind_to_surface(&mut self, particles: &[u32], rest: &[DVec3]) -> Result<()> {
         let Some(body) = &self.body else {
-            return Err(Error::param_value(
-                Param::Rig,
-                text!(
-                    "the character has no skinned mesh to bind the pins to (bind them to a joint with ",
-                    Param::PinTo,
-                    ")"
-                ),
+            return Err(Error::value(
+                "the character has no skinned mesh to bind the pins to",
             ));
         };
         let collider = self

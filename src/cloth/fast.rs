@@ -33,7 +33,6 @@ use super::linalg::{upper_from_triplets, Cholesky, Lanes4, Lanes4f};
 use super::system::{FreeBends, ReducedSystem, PINNED};
 use super::{StepSolver, StepStats};
 use crate::error::{Error, Result};
-use crate::param::Param;
 
 /// The f32 factor is used only when it contracts the error of the linear correction iteration
 /// x ← x + Ã⁻¹(b − A·x) by at least this factor per iteration (estimated at construction);
@@ -157,12 +156,11 @@ impl FastSolver {
     ///
     /// # Errors
     /// [`crate::Error::Factorisation`] when the matrix cannot be factored;
-    /// [`crate::Error::Param`] for a system with a triangle membrane, which the local steps do
-    /// not model.
+    /// [`crate::Error::Value`] for a system with a triangle membrane, which the local steps do
+    /// not model (a job refuses the pair first, naming its options).
     pub fn new(sys: ReducedSystem, iterations: usize) -> Result<Self> {
         if !sys.membrane.is_empty() {
-            return Err(crate::Error::param_value(
-                crate::param::Param::Membrane,
+            return Err(crate::Error::value(
                 "triangles: the fast solver models edge springs only",
             ));
         }
@@ -668,8 +666,7 @@ impl StepSolver for FastSolver {
 
     fn drive(&mut self, pins: &[DVec3], shapes: Vec<(usize, Collider)>) -> Result<()> {
         if !shapes.is_empty() {
-            return Err(Error::param_value(
-                Param::Solver,
+            return Err(Error::value(
                 "fast: a moving body collider needs the Newton solver",
             ));
         }

@@ -90,8 +90,8 @@ pub trait StepSolver {
     /// and each `(j, shape)` of `shapes` replaces collider `j` (a moving body).
     ///
     /// # Errors
-    /// [`Error::Param`] (`solver`) when the solver cannot take moving colliders (only Newton
-    /// can).
+    /// [`Error::Value`] when the solver cannot take moving colliders (only Newton can; a job
+    /// refuses the fast solver on a moving body first, naming its options).
     fn drive(&mut self, pins: &[DVec3], shapes: Vec<(usize, collide::Collider)>) -> Result<()>;
 
     /// Uses up to `threads` threads from the next step on (a bake's share of the cores changes

@@ -12,7 +12,6 @@ use glam::DVec3;
 
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
-use crate::param::Param;
 use crate::spec::parse_numbers;
 
 /// One parsed `--pin` value.
@@ -30,7 +29,7 @@ impl FromStr for PinSpec {
     type Err = Error;
 
     fn from_str(s: &str) -> Result<Self> {
-        let bad = |m: String| Error::param_value(Param::Pin, format!("`{s}`: {m}"));
+        let bad = |m: String| Error::value(format!("`{s}`: {m}"));
         let (kind, rest) = s.split_once(':').ok_or_else(|| {
             bad("expected index:I,J,..., box:X0,Y0,Z0,X1,Y1,Z1 or group:NAME".into())
         })?;
@@ -47,7 +46,7 @@ impl FromStr for PinSpec {
                 Ok(PinSpec::Index(indices))
             }
             "box" => {
-                let c = parse_numbers::<6>(Param::Pin, rest, "box:X0,Y0,Z0,X1,Y1,Z1")?;
+                let c = parse_numbers::<6>(rest, "box:X0,Y0,Z0,X1,Y1,Z1")?;
                 let (a, b) = (DVec3::new(c[0], c[1], c[2]), DVec3::new(c[3], c[4], c[5]));
                 Ok(PinSpec::Box(a.min(b), a.max(b)))
             }
@@ -78,8 +77,8 @@ impl PinSpec {
     /// The particles this spec selects on `mesh`, sorted and unique.
     ///
     /// # Errors
-    /// [`Error::EmptyPin`] when nothing is selected; [`Error::InvalidOption`] for an index past the
-    /// file's positions or a position no face uses, or an unknown group.
+    /// [`Error::EmptyPin`] when nothing is selected; [`Error::Value`] for an index past the file's
+    /// positions or a position no face uses, or an unknown group (the job names `--pin`).
     pub fn select(&self, mesh: &Mesh) -> Result<Vec<u32>> {
         let mut out: Vec<u32> = match self {
             PinSpec::Index(indices) => {
@@ -89,7 +88,7 @@ impl PinSpec {
                     .map(|&i| {
                         mesh.file_index.binary_search(&i).map(|p| p as u32).map_err(|_| {
                             let why = if (i as usize) < file_count { "is used by no face" } else { "is out of range" };
-                            Error::param_value(Param::Pin,
+                            Error::value(
                                 format!("`{self}`: particle {i} {why} ({} has {} particles, indices from 0)", mesh.name, mesh.positions.len()),
                             )
                         })
@@ -104,18 +103,15 @@ impl PinSpec {
                 .collect(),
             PinSpec::Group(name) => mesh.groups.get(name).cloned().ok_or_else(|| {
                 let known: Vec<&str> = mesh.groups.keys().map(String::as_str).collect();
-                Error::param_value(
-                    Param::Pin,
-                    format!(
-                        "`{self}`: {} has no group `{name}` (groups: {})",
-                        mesh.name,
-                        if known.is_empty() {
-                            "none".into()
-                        } else {
-                            known.join(", ")
-                        }
-                    ),
-                )
+                Error::value(format!(
+                    "`{self}`: {} has no group `{name}` (groups: {})",
+                    mesh.name,
+                    if known.is_empty() {
+                        "none".into()
+                    } else {
+                        known.join(", ")
+                    }
+                ))
             })?,
         };
         out.sort_unstable();
@@ -188,8 +184,11 @@ mod tests {
             ("ring:1", "unknown pin kind"),
             ("group:", "empty"),
         ] {
-            let e = spec.parse::<PinSpec>().unwrap_err().to_string();
-            assert!(e.contains("`pin`") && e.contains(words), "{spec}: {e}");
+            // A value error; the job (or clap, or the scene reader) names `--pin`.
+            let e = spec.parse::<PinSpec>().unwrap_err();
+            assert!(matches!(e, Error::Value { .. }), "{spec}: {e}");
+            let e = e.detail();
+            assert!(e.starts_with('`') && e.contains(words), "{spec}: {e}");
         }
         let m = square();
         let e = "index:7"

@@ -13,7 +13,6 @@
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 
 use crate::error::{Error, Result};
-use crate::param::Param;
 
 /// One joint of a chain: its rest local transform and name.
 #[derive(Debug, Clone, PartialEq)]
@@ -135,15 +134,19 @@ impl Chain {
     /// at (0, length·1.7/2.6, 0), the lab arm's proportions; bones are `length / (n-1)` long.
     ///
     /// # Errors
-    /// [`Error::InvalidOption`] for `n < 2` (`--joints`) or a non-positive length (`--length`).
+    /// [`Error::Chain`] for `n < 2` or a length that is not a positive number (a job checks
+    /// both first, naming its options).
     pub fn straight(n: usize, length: f64) -> Result<Self> {
         if n < 2 {
-            return Err(Error::param_value(
-                Param::Joints,
-                format!("{n}: a chain needs at least 2 joints"),
-            ));
+            return Err(Error::Chain(format!(
+                "a chain needs at least 2 joints, got {n}"
+            )));
         }
-        crate::spec::positive(Param::Length, length)?;
+        if !(length.is_finite() && length > 0.0) {
+            return Err(Error::Chain(format!(
+                "a chain's length must be a positive number, got {length}"
+            )));
+        }
         let bone = length / (n - 1) as f64;
         let joints = (0..n)
             .map(|i| {
@@ -304,14 +307,9 @@ mod tests {
 
     #[test]
     fn straight_chain_rejects_bad_options() {
-        assert!(Chain::straight(1, 1.0)
-            .unwrap_err()
-            .to_string()
-            .contains("`joints`"));
-        assert!(Chain::straight(3, -1.0)
-            .unwrap_err()
-            .to_string()
-            .contains("`length`"));
+        assert!(matches!(Chain::straight(1, 1.0), Err(Error::Chain(_))));
+        assert!(matches!(Chain::straight(3, -1.0), Err(Error::Chain(_))));
+        assert!(matches!(Chain::straight(3, f64::NAN), Err(Error::Chain(_))));
         let c = Chain::straight(4, 3.0).unwrap();
         assert_abs_diff_eq!(c.reach(&c.rest_pose()), 3.0, epsilon = 1e-12);
     }

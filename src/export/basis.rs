@@ -112,10 +112,9 @@ use super::morph::{
     MorphOptions,
 };
 use super::statics::push_scene;
+use crate::error::BasisProblem;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
-use crate::param::Param;
-use crate::text;
 
 pub use crate::data::KHR_MESH_QUANTIZATION;
 
@@ -138,10 +137,9 @@ impl std::str::FromStr for BasisSize {
         }
         match s.trim().parse::<usize>() {
             Ok(k) if k >= 1 => Ok(BasisSize::Fixed(k)),
-            _ => Err(Error::param_value(
-                Param::Basis,
-                format!("`{s}`: expected a number of targets (1 or more) or `auto`"),
-            )),
+            _ => Err(Error::value(format!(
+                "`{s}`: expected a number of targets (1 or more) or `auto`"
+            ))),
         }
     }
 }
@@ -184,9 +182,10 @@ pub struct BasisOptions {
     /// `--basis`.
     pub size: BasisSize,
     /// `--basis-tolerance` M (scene units): the largest vertex distance allowed between a played
-    /// frame and the bake (for `auto`, and for `--quantize auto`).
+    /// frame and the bake (for `auto`, and for `--quantize auto`); finite and not negative (the
+    /// job checks it).
     pub tolerance: f64,
-    /// `--max-targets N`: most targets written.
+    /// `--max-targets N`: most targets written (the job refuses 0).
     pub max_targets: Option<usize>,
     /// `--quantize`.
     pub quantize: QuantizeMode,
@@ -344,10 +343,10 @@ impl StoredDelta {
 /// Encodes `frames` as a basis cache for `path` (see the module documentation).
 ///
 /// # Errors
-/// [`Error::InvalidOption`] naming `--basis`, `--basis-tolerance`, `--max-targets` or
-/// `--keyframe-tolerance` for unusable values, or `--max-targets` (or `--basis-tolerance`) when
-/// the tolerance cannot be met within the targets allowed; [`Error::Export`] for too few frames
-/// or a bad static mesh; [`Error::Json`].
+/// [`Error::Basis`] for more fixed targets than frames, a tolerance that cannot be met within
+/// the targets allowed, or a basis that needs more targets than allowed; [`Error::Export`] for
+/// too few frames or a bad static mesh; [`Error::Json`]. The tolerances and the target cap are
+/// the caller's to check (finite, not negative; at least 1).
 pub fn encode_basis_gltf(
     path: &Path,
     mesh: &Mesh,
@@ -392,47 +391,21 @@ pub fn encode_basis_on(
             message: format!("static mesh `{name}` {problem}").into(),
         });
     }
-    if !(basis.tolerance.is_finite() && basis.tolerance >= 0.0) {
-        return Err(Error::param_value(
-            Param::BasisTolerance,
-            format!("{}: must be zero or a positive distance", basis.tolerance),
-        ));
-    }
-    let keyframe_tolerance = match options.keyframe_tolerance {
-        Some(t) if t.is_finite() && t >= 0.0 => Some(t),
-        Some(t) => {
-            return Err(Error::param_value(
-                Param::KeyframeTolerance,
-                format!("{t}: must be zero or a positive distance"),
-            ))
-        }
-        None => None,
-    };
-    if basis.max_targets == Some(0) {
-        return Err(Error::param_value(
-            Param::MaxTargets,
-            "0: must be at least 1",
-        ));
-    }
+    let keyframe_tolerance = options.keyframe_tolerance;
     let available = f - 1;
     let cap = basis.max_targets.unwrap_or(usize::MAX).min(available);
+    let refuse = |problem: BasisProblem| Error::Basis {
+        path: path.into(),
+        problem,
+    };
     if let BasisSize::Fixed(k) = basis.size {
         if k > available {
-            return Err(Error::param_value(
-                Param::Basis,
-                format!("{k} targets: the bake has only {available} frames after frame 0"),
-            ));
+            return Err(refuse(BasisProblem::TooFewFrames {
+                targets: k,
+                available,
+            }));
         }
-        if let Some(n) = basis.max_targets.filter(|&n| k > n) {
-            return Err(Error::param_value(
-                Param::MaxTargets,
-                text!(
-                    format!("{n}: fewer than the {k} targets "),
-                    Param::Basis,
-                    " asks for"
-                ),
-            ));
-        }
+        // More than `max_targets` allowed is refused below (`TooManyTargets`).
     }
 
     let svd = frame_svd(frames).ok_or_else(|| Error::Export {
@@ -474,21 +447,13 @@ pub fn encode_basis_on(
     }
     let Some(float_pick) = float_pick else {
         let (k, err) = best.map_or((cap, f64::INFINITY), |b| (b.0.k, b.2));
-        let message = format!(
-            "{m} m cannot be met with at most {cap} targets (best: {k} targets, {err:.3e} m); \
-             raise it, or allow more targets"
-        );
-        return Err(match basis.max_targets {
-            Some(n) if n < available => Error::param_value(
-                Param::MaxTargets,
-                text!(
-                    format!("{n}: "),
-                    Param::BasisTolerance,
-                    format!(" {message}")
-                ),
-            ),
-            _ => Error::param_value(Param::BasisTolerance, message),
-        });
+        return Err(refuse(BasisProblem::ToleranceUnmet {
+            tolerance: m,
+            cap,
+            best: k,
+            best_error: err,
+            max_targets: basis.max_targets.filter(|&n| n < available),
+        }));
     };
     let mut pick = float_pick;
     if try_quantized {
@@ -625,12 +590,7 @@ pub fn encode_basis_on(
     let encode = |pick: Pick| -> Result<EncodedBasis> {
         let (c, keys) = (&pick.0, &pick.1);
         // The shared layout applies whenever K is within `--max-targets`, as every pick's is.
-        let too_many = || {
-            Error::param_value(
-                Param::MaxTargets,
-                format!("fewer than the {} targets the basis needs", c.k),
-            )
-        };
+        let too_many = || refuse(BasisProblem::TooManyTargets { needed: c.k });
         if !options.normals {
             return encode(&pick, None)?.ok_or_else(too_many);
         }
@@ -2077,8 +2037,12 @@ mod tests {
     fn basis_size_parses() {
         assert_eq!("auto".parse::<BasisSize>().unwrap(), BasisSize::Auto);
         assert_eq!("12".parse::<BasisSize>().unwrap(), BasisSize::Fixed(12));
-        let e = "0".parse::<BasisSize>().unwrap_err().to_string();
-        assert!(e.contains("`basis`"), "{e}");
+        let e = "0".parse::<BasisSize>().unwrap_err();
+        assert!(matches!(e, Error::Value { .. }), "{e}");
+        assert_eq!(
+            e.detail(),
+            "`0`: expected a number of targets (1 or more) or `auto`"
+        );
         assert!("x".parse::<BasisSize>().is_err());
     }
 

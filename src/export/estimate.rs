@@ -7,11 +7,6 @@
 //! plays in a viewer, so larger estimates are errors; above [`WARN_BYTES`] the bake runs and
 //! warns.
 
-use crate::error::{Error, Result};
-use crate::param::Param;
-use crate::param::Text;
-use crate::text;
-
 /// Largest output accepted: a GLB's 32-bit length.
 pub const LIMIT_BYTES: u64 = u32::MAX as u64;
 
@@ -41,40 +36,40 @@ pub fn human(bytes: u128) -> String {
     }
 }
 
-/// Checks a cloth bake of `frames` frames after the initial state over `vertices` render
-/// vertices: an error naming `--frames` when the cache would exceed [`LIMIT_BYTES`], a warning
-/// (returned) above [`WARN_BYTES`].
-///
-/// # Errors
-/// [`Error::InvalidOption`] naming `--frames`.
-pub fn check_frames(frames: usize, vertices: usize, normals: bool) -> Result<Option<Text>> {
+/// How the cache of a bake compares with what a GLB holds (see [`cache_size`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CacheSize {
+    /// Within [`WARN_BYTES`].
+    Fits,
+    /// Over [`WARN_BYTES`], within [`LIMIT_BYTES`]: the bake runs, with a warning.
+    Large {
+        /// The estimated bytes.
+        bytes: u128,
+    },
+    /// Over [`LIMIT_BYTES`]: refused.
+    TooLarge {
+        /// The estimated bytes.
+        bytes: u128,
+        /// The most frames after the initial state that fit.
+        most_frames: u128,
+    },
+}
+
+/// The size of a cloth bake of `frames` frames after the initial state over `vertices` render
+/// vertices, with NORMAL deltas when `normals`.
+pub fn cache_size(frames: usize, vertices: usize, normals: bool) -> CacheSize {
     let bytes = morph_bytes(vertices, frames.saturating_add(1), normals);
     if bytes > u128::from(LIMIT_BYTES) {
         let most = u128::from(LIMIT_BYTES) / morph_bytes(vertices.max(1), 1, normals);
-        return Err(Error::param_value(
-            Param::Frames,
-            text!(
-                format!(
-                    "{frames}: {frames} frames of {vertices} vertices need about {} in memory and \
-                     in the output, over the 4.3 GB a GLB can hold; at most {} frames fit (",
-                    human(bytes),
-                    most.saturating_sub(1)
-                ),
-                Param::KeyframeTolerance,
-                " shrinks the file, not the bake)"
-            ),
-        ));
+        CacheSize::TooLarge {
+            bytes,
+            most_frames: most.saturating_sub(1),
+        }
+    } else if bytes > u128::from(WARN_BYTES) {
+        CacheSize::Large { bytes }
+    } else {
+        CacheSize::Fits
     }
-    Ok((bytes > u128::from(WARN_BYTES)).then(|| {
-        text!(
-            format!(
-                "the output will be about {} ({frames} frames of {vertices} vertices); ",
-                human(bytes)
-            ),
-            Param::KeyframeTolerance,
-            " can shrink it"
-        )
-    }))
 }
 
 #[cfg(test)]
@@ -85,29 +80,36 @@ mod tests {
     fn the_limit_is_the_glb_length_field() {
         // 961 vertices with normals: 23,064 bytes a frame; 186,217 frames fit in 4 GiB.
         let fit = (u32::MAX as u64 / 23_064) as usize;
-        assert!(check_frames(fit - 1, 961, true).is_ok());
-        let e = check_frames(fit, 961, true).unwrap_err().to_string();
-        assert!(e.starts_with("invalid value for `frames`: "), "{e}");
-        assert!(
-            e.contains(&format!("at most {} frames fit", fit - 1)),
-            "{e}"
-        );
-        assert!(check_frames(1_000_000_000, 961, true).is_err());
-        assert_eq!(check_frames(120, 961, true).unwrap(), None);
-        assert!(check_frames(50_000, 961, true).unwrap().is_some());
+        assert!(!matches!(
+            cache_size(fit - 1, 961, true),
+            CacheSize::TooLarge { .. }
+        ));
+        assert!(matches!(
+            cache_size(fit, 961, true),
+            CacheSize::TooLarge { most_frames, .. } if most_frames == fit as u128 - 1
+        ));
+        assert!(matches!(
+            cache_size(1_000_000_000, 961, true),
+            CacheSize::TooLarge { .. }
+        ));
+        assert_eq!(cache_size(120, 961, true), CacheSize::Fits);
+        assert!(matches!(
+            cache_size(50_000, 961, true),
+            CacheSize::Large { .. }
+        ));
     }
 
     /// The trial run's trap: `--frames 20000` on an 8k-vertex skirt wrote gigabytes silently.
     /// 20,001 frames × 8,121 vertices × 24 bytes = 3,898,274,904 bytes: under the GLB limit, over
-    /// the warning threshold.
+    /// the warning threshold (the job's warning: `crate::bake::cloth`).
     #[test]
-    fn twenty_thousand_frames_of_a_skirt_warn_with_the_size() {
+    fn twenty_thousand_frames_of_a_skirt_are_large() {
         assert_eq!(morph_bytes(8121, 20_001, true), 3_898_274_904);
-        let warning = check_frames(20_000, 8121, true).unwrap().unwrap();
         assert_eq!(
-            warning.render(&|p| format!("--{}", p.key().replace('_', "-"))),
-            "the output will be about 3.9 GB (20000 frames of 8121 vertices); \
-             --keyframe-tolerance can shrink it"
+            cache_size(20_000, 8121, true),
+            CacheSize::Large {
+                bytes: 3_898_274_904
+            }
         );
     }
 

@@ -25,7 +25,6 @@ use super::statics::{push_scene, StaticMesh};
 use crate::data::FrameCache;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
-use crate::param::Param;
 
 /// How weights are interpolated between frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -51,7 +50,8 @@ pub struct MorphOptions {
     /// Write NORMAL deltas (recomputed from the simulated surface).
     pub normals: bool,
     /// `--keyframe-tolerance`: keep only the frames needed to reproduce every frame within this
-    /// distance (scene units); `None` keeps every frame.
+    /// distance (scene units; finite and not negative, the job checks it); `None` keeps every
+    /// frame.
     pub keyframe_tolerance: Option<f64>,
     /// `--sparse`: whether delta accessors may be sparse.
     pub sparse: SparseMode,
@@ -150,8 +150,7 @@ pub fn check_cache(path: &Path, mesh: &Mesh, cache: &FrameCache) -> Result<()> {
 ///
 /// # Errors
 /// [`Error::Export`] for a bad extension, too few frames, or a static mesh that cannot be
-/// written (no triangle, index out of range, non-finite position); [`Error::InvalidOption`] naming
-/// `--keyframe-tolerance` when it is negative or not finite; [`Error::Json`].
+/// written (no triangle, index out of range, non-finite position); [`Error::Json`].
 pub fn encode_morph_gltf(
     path: &Path,
     mesh: &Mesh,
@@ -209,15 +208,6 @@ pub fn encode_morph_gltf_with_body(
             path: path.into(),
             message: format!("static mesh `{name}` {problem}").into(),
         });
-    }
-    if let Some(t) = options
-        .keyframe_tolerance
-        .filter(|t| !(t.is_finite() && *t >= 0.0))
-    {
-        return Err(Error::param_value(
-            Param::KeyframeTolerance,
-            format!("{t}: must be zero or a positive distance"),
-        ));
     }
     let mut b = GltfBuilder::new();
     let (node, stats) = push_morph(&mut b, path, mesh, frames, options)?;
@@ -329,13 +319,7 @@ pub(crate) fn push_morph(
     options: &MorphOptions,
 ) -> Result<(json::Index<json::Node>, CacheStats)> {
     let selection = match options.keyframe_tolerance {
-        Some(t) if t.is_finite() && t >= 0.0 => select_keyframes(frames, t, options.interpolation),
-        Some(t) => {
-            return Err(Error::param_value(
-                Param::KeyframeTolerance,
-                format!("{t}: must be zero or a positive distance"),
-            ))
-        }
+        Some(t) => select_keyframes(frames, t, options.interpolation),
         None => KeyframeSelection::all(frames.frame_count()),
     };
     let normals = options

@@ -23,7 +23,6 @@ use std::path::{Path, PathBuf};
 use crate::data::FrameCache;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
-use crate::param::Param;
 
 /// Which point-cache format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -33,16 +32,6 @@ pub enum PointCacheFormat {
     Pc2,
     /// LightWave's MDD, big-endian.
     Mdd,
-}
-
-impl PointCacheFormat {
-    /// The option that asks for it.
-    pub fn param(self) -> Param {
-        match self {
-            PointCacheFormat::Pc2 => Param::Pc2,
-            PointCacheFormat::Mdd => Param::Mdd,
-        }
-    }
 }
 
 /// The timing of a cache.
@@ -143,13 +132,13 @@ pub fn encode_point_cache(
     })
 }
 
-/// Checks before a bake that `path` (the option `param` names it) names a file. Whether it can
-/// be written is checked with every other output of the job (`crate::bake::outputs`).
+/// Checks before a bake that `path` names a file. Whether it can be written is checked with
+/// every other output of the job (`crate::bake::outputs`).
 ///
 /// # Errors
-/// [`Error::Param`] naming `param` and the path.
-pub fn check_point_cache_path(param: Param, path: &Path) -> Result<()> {
-    let refuse = |what: String| Err(Error::param_value(param, what));
+/// [`Error::Value`] naming the path (the job names the option).
+pub fn check_point_cache_path(path: &Path) -> Result<()> {
+    let refuse = |what: String| Err(Error::value(what));
     if path.as_os_str().is_empty() {
         return refuse("an empty path: give the cache's file name".into());
     }

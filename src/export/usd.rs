@@ -29,7 +29,6 @@ use openusd::sdf::{self, ChildrenKey, FieldKey, SpecType, Specifier, Value, Vari
 
 use crate::error::{Error, Result};
 use crate::export::pointcache::check_point_cache_path;
-use crate::param::Param;
 
 /// The root prim, the layer's default prim.
 pub const ROOT: &str = "World";
@@ -58,10 +57,10 @@ pub fn usd_format(path: &Path) -> Option<UsdFormat> {
 /// the job (`crate::bake::outputs`).
 ///
 /// # Errors
-/// [`Error::Param`] naming `--usd` and what is wrong.
+/// [`Error::Value`] saying what is wrong (the job names `--usd`).
 pub fn check_usd_path(path: &Path) -> Result<()> {
-    check_point_cache_path(Param::Usd, path)?;
-    let refuse = |what: String| Err(Error::param_value(Param::Usd, what));
+    check_point_cache_path(path)?;
+    let refuse = |what: String| Err(Error::value(what));
     match usd_format(path) {
         Some(UsdFormat::Text) => Ok(()),
         Some(UsdFormat::Crate) => refuse(format!(
@@ -151,7 +150,7 @@ pub fn prim_name(name: &str) -> String {
 /// [`check_usd_path`]).
 ///
 /// # Errors
-/// [`Error::Param`] for a path [`check_usd_path`] refuses; [`Error::Export`] naming `path` when a
+/// [`Error::Value`] for a path [`check_usd_path`] refuses; [`Error::Export`] naming `path` when a
 /// mesh's frames do not match `options.frames`, its normals its positions, or a triangle indexes
 /// past its points.
 pub fn encode_usd(path: &Path, meshes: &[UsdMesh], options: &UsdOptions) -> Result<EncodedUsd> {

@@ -22,7 +22,6 @@ use glam::Vec3;
 
 use super::frames::RenderFrames;
 use crate::error::{Error, Result};
-use crate::param::Param;
 
 /// Default `--vat-max-width`: pixels per image row.
 pub const DEFAULT_MAX_WIDTH: usize = 8192;
@@ -44,7 +43,7 @@ pub enum VatMode {
 pub struct VatOptions {
     /// `--vat-mode`.
     pub mode: VatMode,
-    /// `--vat-max-width`: most pixels per row (at least 1).
+    /// `--vat-max-width`: most pixels per row (at least 1, the job checks it; 0 is taken as 1).
     pub max_width: usize,
     /// Frames per second: frame f is at f / fps seconds.
     pub fps: f64,
@@ -145,20 +144,17 @@ pub struct EncodedVat {
 /// `x.json`.
 ///
 /// # Errors
-/// [`Error::InvalidOption`] naming `--vat` when `path` does not end in `.exr`.
+/// [`Error::Value`] when `path` does not end in `.exr` (the job names `--vat`).
 pub fn vat_paths(path: &Path) -> Result<(PathBuf, PathBuf)> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     if ext.as_deref() != Some("exr") || path.file_stem().is_none_or(|s| s.is_empty()) {
-        return Err(Error::param_value(
-            Param::Vat,
-            format!(
-                "{}: the vertex-animation texture must be a file ending in .exr",
-                path.display()
-            ),
-        ));
+        return Err(Error::value(format!(
+            "{}: the vertex-animation texture must be a file ending in .exr",
+            path.display()
+        )));
     }
     Ok((
         path.with_extension("normals.exr"),
@@ -169,16 +165,9 @@ pub fn vat_paths(path: &Path) -> Result<(PathBuf, PathBuf)> {
 /// Encodes the VAT of `frames` for position image `path` without writing it.
 ///
 /// # Errors
-/// [`Error::InvalidOption`] for a path not ending in `.exr` or a zero maximum width;
-/// [`Error::Export`] when the `exr` crate fails.
+/// As [`vat_paths`]; [`Error::Export`] when the `exr` crate fails.
 pub fn encode_vat(path: &Path, frames: &RenderFrames, options: &VatOptions) -> Result<EncodedVat> {
     let (normals_path, json_path) = vat_paths(path)?;
-    if options.max_width == 0 {
-        return Err(Error::param_value(
-            Param::VatMaxWidth,
-            "0: must be at least 1 pixel",
-        ));
-    }
     let layout = VatLayout::new(
         frames.vertex_count(),
         frames.frame_count(),
@@ -322,8 +311,9 @@ mod tests {
         assert_eq!(j, Path::new("out/cloth.json"));
         assert!(vat_paths(Path::new("out/CLOTH.EXR")).is_ok());
         for bad in ["cloth.png", "cloth", "out/.exr"] {
-            let e = vat_paths(Path::new(bad)).unwrap_err().to_string();
-            assert!(e.contains("`vat`"), "{e}");
+            let e = vat_paths(Path::new(bad)).unwrap_err();
+            assert!(matches!(e, Error::Value { .. }), "{e}");
+            assert!(e.to_string().contains(".exr"), "{e}");
         }
     }
 }

@@ -31,8 +31,6 @@ use glam::{DQuat, DVec3};
 
 use super::chain::{Chain, Pose};
 use crate::error::{Error, Result};
-use crate::param::Param;
-use crate::text;
 
 /// A rotation limit on one joint.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -92,14 +90,13 @@ impl TipAxis {
     /// Checks and normalises both directions.
     ///
     /// # Errors
-    /// [`Error::InvalidOption`] (`--tip-axis`) for a zero or non-finite axis; [`Error::Chain`]
-    /// for a zero pen direction.
+    /// [`Error::Value`] for a zero or non-finite axis (the job names `--tip-axis`);
+    /// [`Error::Chain`] for a zero pen direction.
     pub fn new(axis: DVec3, pen: DVec3) -> Result<Self> {
         if !axis.is_finite() || axis.length() < 1e-12 {
-            return Err(Error::param_value(
-                Param::TipAxis,
-                format!("{axis}: must be a finite, non-zero direction"),
-            ));
+            return Err(Error::value(format!(
+                "{axis}: must be a finite, non-zero direction"
+            )));
         }
         let pen = pen
             .try_normalize()
@@ -176,20 +173,17 @@ impl Constraints {
     /// further).
     ///
     /// # Errors
-    /// [`Error::InvalidOption`] (`--limit`, `--pole`) naming the specification: malformed, an
-    /// unknown joint (listing the chain's), the end effector, two limits of a kind (or a hinge
-    /// and a twist) on a joint, an empty or out-of-range interval, or a hinge whose axis cannot
-    /// be derived.
+    /// [`Error::Value`] naming the specification (the job names `--limit`): malformed, an unknown
+    /// joint (listing the chain's), the end effector, two limits of a kind (or a hinge and a
+    /// twist) on a joint, an empty or out-of-range interval; [`Error::HingeAxis`] for a hinge
+    /// whose axis cannot be derived. `pole` is finite (the job checks it; a non-finite one is
+    /// ignored).
     pub fn from_specs(chain: &Chain, pole: Option<DVec3>, specs: &[String]) -> Result<Self> {
-        if let Some(p) = pole {
-            if !p.is_finite() {
-                return Err(Error::param_value(Param::Pole, "must be finite"));
-            }
-        }
+        let pole = pole.filter(|p| p.is_finite());
         let rest = chain.rest_pose();
         let mut limits: Vec<(usize, Limit)> = Vec::new();
         for spec in specs {
-            let bad = |m: String| Error::param_value(Param::Limit, format!("`{spec}`: {m}"));
+            let bad = |m: String| Error::value(format!("`{spec}`: {m}"));
             let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
             if parts.len() < 3 {
                 return Err(bad(
@@ -235,26 +229,18 @@ impl Constraints {
                     }
                     let axis = match parts.get(3) {
                         Some(a) => {
-                            let v = crate::spec::parse_vec3(Param::Limit, a)?;
+                            let v = crate::spec::parse_vec3(a)?;
                             if v.length() < 1e-12 {
                                 return Err(bad("the hinge axis is zero".into()));
                             }
                             v.normalize()
                         }
-                        None => default_hinge_axis(&rest, i, pole).ok_or_else(|| {
-                            Error::param_value(
-                                Param::Limit,
-                                text!(
-                                    format!(
-                                        "`{spec}`: cannot tell the bend axis of `{}`: it is \
-                                         straight in the rest pose; give ",
-                                        parts[0]
-                                    ),
-                                    Param::Pole,
-                                    " or the axis as JOINT:hinge:MIN..MAX:X,Y,Z"
-                                ),
-                            )
-                        })?,
+                        None => {
+                            default_hinge_axis(&rest, i, pole).ok_or_else(|| Error::HingeAxis {
+                                spec: spec.clone(),
+                                joint: parts[0].to_owned(),
+                            })?
+                        }
                     };
                     if parts.len() > 4 {
                         return Err(bad("too many fields".into()));
@@ -587,15 +573,16 @@ mod tests {
             ("joint_1:hinge:50..10", "MIN <= MAX"),
             ("joint_1:cone:x", "`x`"),
         ] {
-            let e = Constraints::from_specs(&c, None, &[bad.into()])
-                .unwrap_err()
-                .to_string();
-            assert!(e.contains("`limit`") && e.contains(needle), "{bad}: {e}");
+            let e = Constraints::from_specs(&c, None, &[bad.into()]).unwrap_err();
+            assert!(matches!(e, Error::Value { .. }), "{bad}: {e}");
+            let e = e.detail();
+            assert!(
+                e.starts_with(&format!("`{bad}`: ")) && e.contains(needle),
+                "{bad}: {e}"
+            );
         }
         // A straight joint without a pole has no bend axis to hinge about.
-        let e = Constraints::from_specs(&c, None, &["joint_1:hinge:0..90".into()])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("`pole`"), "{e}");
+        let e = Constraints::from_specs(&c, None, &["joint_1:hinge:0..90".into()]).unwrap_err();
+        assert!(matches!(e, Error::HingeAxis { .. }), "{e}");
     }
 }

@@ -6,16 +6,15 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::{gltf_mesh, obj};
 use crate::mesh::Mesh;
-use crate::param::Param;
 
 /// Reads the collider mesh in `path`: every face of an OBJ, or only its `o`/`g` object `part`;
 /// every mesh node of a glTF/GLB's scene in world space, or only the node or mesh named `part`.
 /// Positions are the file's, unplaced.
 ///
 /// # Errors
-/// [`Error::Param`] naming `--collider`, the file and the names it holds when `part` names
-/// nothing in it, or when the file is not an OBJ, glTF or GLB; the readers' errors (naming the
-/// file, and the line for an OBJ).
+/// [`Error::Value`] naming the file and the names it holds when `part` names nothing in it, or
+/// when the file is not an OBJ, glTF or GLB (the job names `--collider`); the readers' errors
+/// (naming the file, and the line for an OBJ).
 pub fn load_collider_mesh(path: &Path, part: Option<&str>) -> Result<Mesh> {
     let ext = path
         .extension()
@@ -26,27 +25,12 @@ pub fn load_collider_mesh(path: &Path, part: Option<&str>) -> Result<Mesh> {
             &obj::ObjOptions {
                 object: part.map(str::to_owned),
             },
-        )
-        .map_err(|e| match e {
-            // The OBJ reader names --object (the input's option); here the object is the
-            // collider's.
-            Error::Param {
-                param: Param::Object,
-                message,
-            } => Error::Param {
-                param: Param::Collider,
-                message,
-            },
-            e => e,
-        }),
+        ),
         Some("gltf" | "glb") => gltf_mesh::load_gltf_collider(path, part),
-        _ => Err(Error::param_value(
-            Param::Collider,
-            format!(
-                "mesh:{}: a mesh collider is an .obj, .gltf or .glb file",
-                path.display()
-            ),
-        )),
+        _ => Err(Error::value(format!(
+            "mesh:{}: a mesh collider is an .obj, .gltf or .glb file",
+            path.display()
+        ))),
     }
 }
 
@@ -78,7 +62,7 @@ mod tests {
         assert_eq!(floor.triangles.len(), 1);
         assert!(floor.positions.iter().all(|q| q.y == 0.0));
         let e = load_collider_mesh(&p, Some("roof")).unwrap_err();
-        assert_eq!(e.param(), Some(Param::Collider));
+        assert!(matches!(e, Error::Value { .. }), "{e}");
         assert!(
             e.to_string().contains("no object or group named `roof`"),
             "{e}"
@@ -87,8 +71,12 @@ mod tests {
     }
 
     #[test]
-    fn other_formats_are_refused_naming_the_collider() {
+    fn other_formats_are_refused_as_values() {
         let e = load_collider_mesh(Path::new("body.tet"), None).unwrap_err();
-        assert_eq!(e.param(), Some(Param::Collider));
+        assert!(matches!(e, Error::Value { .. }), "{e}");
+        assert!(
+            e.to_string().contains("mesh:body.tet: a mesh collider is"),
+            "{e}"
+        );
     }
 }

@@ -13,13 +13,13 @@ use glam::{DMat4, DVec3, Mat4};
 use super::gltf_import::import_gltf;
 use crate::error::{Error, Result};
 use crate::mesh::{drop_degenerate, Mesh, RenderVertex};
-use crate::param::Param;
 
 /// Reads mesh `name` (or the first mesh) of a glTF file.
 ///
 /// # Errors
-/// [`Error::Gltf`] when the file cannot be loaded; [`Error::InvalidInput`] when the mesh is
-/// missing, has no triangles, or holds non-finite positions.
+/// [`Error::Gltf`] when the file cannot be loaded; [`Error::Value`] naming the file and its
+/// meshes when `name` names none (the job names `--mesh`); [`Error::InvalidInput`] when the mesh
+/// is missing, has no triangles, or holds non-finite positions.
 pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
     let (doc, buffers) = import_gltf(path)?;
     let gmesh = match name {
@@ -35,14 +35,11 @@ pub fn load_gltf_mesh(path: &Path, name: Option<&str>) -> Result<Mesh> {
                             .unwrap_or_else(|| format!("#{}", m.index()))
                     })
                     .collect();
-                Error::param_value(
-                    Param::Mesh,
-                    format!(
-                        "{}: no mesh named `{name}` (meshes: {})",
-                        path.display(),
-                        known.join(", ")
-                    ),
-                )
+                Error::value(format!(
+                    "{}: no mesh named `{name}` (meshes: {})",
+                    path.display(),
+                    known.join(", ")
+                ))
             })?,
         None => doc
             .meshes()
@@ -157,8 +154,8 @@ pub(crate) fn read_mesh(
 /// triangle set, as an OBJ collider takes every object.
 ///
 /// # Errors
-/// As [`load_gltf_mesh`]; [`Error::Param`] naming `--collider` with the file and the names it
-/// holds when `part` names nothing.
+/// As [`load_gltf_mesh`]; [`Error::Value`] naming the file and the names it holds when `part`
+/// names nothing (the job names `--collider`).
 pub fn load_gltf_collider(path: &Path, part: Option<&str>) -> Result<Mesh> {
     let (doc, buffers) = import_gltf(path)?;
     let placed = mesh_nodes(&doc);
@@ -180,15 +177,12 @@ pub fn load_gltf_collider(path: &Path, part: Option<&str>) -> Result<Mesh> {
                         v.join(", ")
                     }
                 };
-                return Err(Error::param_value(
-                    Param::Collider,
-                    format!(
-                        "{}: no mesh or mesh node named `{name}` (meshes: {}; nodes with a mesh: {})",
-                        path.display(),
-                        named(doc.meshes().map(|m| m.name()).collect()),
-                        named(placed.iter().map(|(n, _, _)| n.name()).collect()),
-                    ),
-                ));
+                return Err(Error::value(format!(
+                    "{}: no mesh or mesh node named `{name}` (meshes: {}; nodes with a mesh: {})",
+                    path.display(),
+                    named(doc.meshes().map(|m| m.name()).collect()),
+                    named(placed.iter().map(|(n, _, _)| n.name()).collect()),
+                )));
             }
         }
         None if !placed.is_empty() => placed.into_iter().map(|(_, m, t)| (m, t)).collect(),

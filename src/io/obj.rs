@@ -16,7 +16,6 @@ use glam::DVec3;
 
 use crate::error::{Error, Result};
 use crate::mesh::{drop_degenerate, Mesh, RenderVertex};
-use crate::param::Param;
 
 /// Options for reading an OBJ file.
 #[derive(Debug, Clone, Default)]
@@ -29,7 +28,9 @@ pub struct ObjOptions {
 ///
 /// # Errors
 /// [`Error::Io`] when the file cannot be read, [`Error::Parse`] with the line number for malformed
-/// or out-of-range data, [`Error::InvalidInput`] when no usable face remains.
+/// or out-of-range data, [`Error::InvalidInput`] when no usable face remains; [`Error::Value`]
+/// naming the file and its objects when `options.object` names none with faces (the job names
+/// the option).
 pub fn load_obj(path: &Path, options: &ObjOptions) -> Result<Mesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let text = String::from_utf8(bytes).map_err(|e| Error::Parse {
@@ -157,18 +158,15 @@ pub fn parse_obj(text: &str, path: &Path, options: &ObjOptions) -> Result<Mesh> 
             known_names.sort();
             known_names.dedup();
             known_names.retain(|n| !n.is_empty());
-            return Err(Error::param_value(
-                Param::Object,
-                format!(
-                    "{}: no object or group named `{object}` with faces (known: {})",
-                    path.display(),
-                    if known_names.is_empty() {
-                        "none".into()
-                    } else {
-                        known_names.join(", ")
-                    }
-                ),
-            ));
+            return Err(Error::value(format!(
+                "{}: no object or group named `{object}` with faces (known: {})",
+                path.display(),
+                if known_names.is_empty() {
+                    "none".into()
+                } else {
+                    known_names.join(", ")
+                }
+            )));
         }
     }
     if faces.is_empty() {

@@ -16,8 +16,6 @@ use crate::data::animation::{
 };
 use crate::data::chain::{Chain, Joint};
 use crate::error::{Error, Result};
-use crate::param::Param;
-use crate::text;
 
 /// A loaded glTF document with its merged binary buffer.
 #[derive(Debug, Clone)]
@@ -192,19 +190,16 @@ impl RigDocument {
     /// (the chain's base is the world transform of ROOT's parent; node matrices are decomposed).
     ///
     /// # Errors
-    /// [`Error::InvalidOption`] when `spec` is not `ROOT..TIP`; [`Error::UnknownJoint`];
-    /// [`Error::JointNotBelow`] when TIP is not a strict descendant of ROOT; [`Error::Chain`] for
-    /// a degenerate chain (zero-length bone, zero scale).
+    /// [`Error::Value`] when `spec` is not `ROOT..TIP` (the job names `--chain`);
+    /// [`Error::UnknownJoint`]; [`Error::JointNotBelow`] when TIP is not a strict descendant of
+    /// ROOT; [`Error::Chain`] for a degenerate chain (zero-length bone, zero scale).
     pub fn chain(&self, spec: &str) -> Result<RigChain> {
         let (root_name, tip_name) = spec
             .split_once("..")
             .map(|(a, b)| (a.trim(), b.trim()))
             .filter(|(a, b)| !a.is_empty() && !b.is_empty())
             .ok_or_else(|| {
-                Error::param_value(
-                    Param::Chain,
-                    format!("`{spec}`: expected ROOT..TIP (node names or #N)"),
-                )
+                Error::value(format!("`{spec}`: expected ROOT..TIP (node names or #N)"))
             })?;
         let root = self.find_node(root_name)?;
         let tip = self.find_node(tip_name)?;
@@ -255,12 +250,7 @@ impl RigDocument {
                 }
             })
             .collect();
-        let chain = Chain::new(joints, base).map_err(|e| match e {
-            Error::Chain(m) => {
-                Error::invalid(&self.path, text!(Param::Chain, format!(" {spec}: {m}")))
-            }
-            other => other,
-        })?;
+        let chain = Chain::new(joints, base)?;
         Ok(RigChain { chain, nodes })
     }
 }
@@ -335,13 +325,12 @@ impl RigDocument {
             .collect()
     }
 
-    /// The animation named `spec` (a name, or `#N` for the N-th), read whole. `param` is the
-    /// option that named it (for the error).
+    /// The animation named `spec` (a name, or `#N` for the N-th), read whole.
     ///
     /// # Errors
-    /// [`Error::Param`] naming the animations there are when none matches; [`Error::Gltf`] for
-    /// an unreadable channel.
-    pub fn clip(&self, spec: &str, param: Param) -> Result<Clip> {
+    /// [`Error::Value`] naming the animations there are when none matches (the job names the
+    /// option); [`Error::Gltf`] for an unreadable channel.
+    pub fn clip(&self, spec: &str) -> Result<Clip> {
         let names = self.animation_names();
         let index = match spec.strip_prefix('#').map(str::parse::<usize>) {
             Some(Ok(i)) if i < names.len() => Some(i),
@@ -362,10 +351,10 @@ impl RigDocument {
                         .join(", ")
                 )
             };
-            return Err(Error::param_value(
-                param,
-                format!("{}: no animation `{spec}` ({have})", self.path.display()),
-            ));
+            return Err(Error::value(format!(
+                "{}: no animation `{spec}` ({have})",
+                self.path.display()
+            )));
         };
         let doc = self.document()?;
         let anim = doc

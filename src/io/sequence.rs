@@ -14,7 +14,6 @@ use glam::DVec3;
 use crate::data::MeshSequence;
 use crate::error::{Error, Result};
 use crate::io::obj::{load_obj, ObjOptions};
-use crate::param::Param;
 
 /// A file-name pattern with one frame number.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -30,18 +29,15 @@ impl FramePattern {
     /// Parses `pattern`: a path whose file name holds exactly one `%d`, `%0Nd` or `%Nd`.
     ///
     /// # Errors
-    /// [`Error::Param`] naming `body` when the file name has no frame number, more than one, or
-    /// another conversion, or when the directory part holds one.
+    /// [`Error::Value`] when the file name has no frame number, more than one, or another
+    /// conversion, or when the directory part holds one (the job names `--body`).
     pub fn parse(pattern: &Path) -> Result<Self> {
         let shown = pattern.display();
         let bad = |why: &str| {
-            Error::param_value(
-                Param::Body,
-                format!(
-                    "`{shown}`: {why} (a file pattern with one frame number, such as \
-                     `kick/shell%d.obj` or `frame_%04d.obj`)"
-                ),
-            )
+            Error::value(format!(
+                "`{shown}`: {why} (a file pattern with one frame number, such as \
+                 `kick/shell%d.obj` or `frame_%04d.obj`)"
+            ))
         };
         let name = pattern
             .file_name()
@@ -162,8 +158,8 @@ impl FramePattern {
 /// number `start` (default: the first file that exists) to the last file, checking every frame.
 ///
 /// # Errors
-/// [`Error::Param`] naming `body` for a bad pattern, no matching file, or a sequence of one
-/// frame; [`Error::InvalidInput`] naming the file for a missing frame (a gap) or a frame whose
+/// [`Error::Value`] for a bad pattern, no matching file, or a sequence of one frame (the job
+/// names `--body`); [`Error::InvalidInput`] naming the file for a missing frame (a gap) or a frame whose
 /// vertices or faces differ from the first's; the OBJ reader's errors (file and line).
 pub fn load_obj_sequence(pattern: &Path, fps: f64, start: Option<u64>) -> Result<MeshSequence> {
     let p = FramePattern::parse(pattern)?;
@@ -184,14 +180,11 @@ pub fn load_obj_sequence(pattern: &Path, fps: f64, start: Option<u64>) -> Result
         }
         (None, Some(&f)) => f,
         (None, None) => {
-            return Err(Error::param_value(
-                Param::Body,
-                format!(
-                    "`{}`: no file matches the pattern (frame 0 would be {})",
-                    pattern.display(),
-                    p.path(0).display()
-                ),
-            ))
+            return Err(Error::value(format!(
+                "`{}`: no file matches the pattern (frame 0 would be {})",
+                pattern.display(),
+                p.path(0).display()
+            )))
         }
     };
     let last = *numbers.last().expect("the first frame exists");
@@ -207,14 +200,11 @@ pub fn load_obj_sequence(pattern: &Path, fps: f64, start: Option<u64>) -> Result
         ));
     }
     if last == first {
-        return Err(Error::param_value(
-            Param::Body,
-            format!(
-                "`{}`: only one frame ({}): a body sequence needs at least two",
-                pattern.display(),
-                p.path(first).display()
-            ),
-        ));
+        return Err(Error::value(format!(
+            "`{}`: only one frame ({}): a body sequence needs at least two",
+            pattern.display(),
+            p.path(first).display()
+        )));
     }
     let files: Vec<PathBuf> = (first..=last).map(|n| p.path(n)).collect();
     let options = ObjOptions::default();
@@ -285,8 +275,9 @@ pub fn load_obj_sequence(pattern: &Path, fps: f64, start: Option<u64>) -> Result
 /// scenebake export records, else the spacing of the keys when it is uniform.
 ///
 /// # Errors
-/// [`Error::Param`] naming `body` for a file without such a mesh or a cubic-spline weights
-/// track, and `body_fps` when no rate can be found; [`Error::InvalidInput`] for targets without
+/// [`Error::NoMorphAnimation`] for a file without such a mesh; [`Error::Value`] for a
+/// cubic-spline weights track (the job names `--body`); [`Error::UnknownRate`] when no rate is
+/// given and none can be found; [`Error::InvalidInput`] for targets without
 /// positions or weights of the wrong length; the glTF reader's errors.
 pub fn load_gltf_sequence(
     path: &Path,
@@ -312,30 +303,18 @@ pub fn load_gltf_sequence(
         })
     });
     let Some(channel) = driven else {
-        let which = part.map_or_else(String::new, |p| format!(" named `{p}`"));
-        return Err(Error::param_value(
-            Param::Body,
-            crate::text!(
-                format!(
-                    "`{}`: no mesh{which} animated by morph-target weights (a skinned character \
-                     is given with ",
-                    path.display()
-                ),
-                Param::Rig,
-                ")"
-            ),
-        ));
+        return Err(Error::NoMorphAnimation {
+            path: path.to_path_buf(),
+            part: part.map(str::to_owned),
+        });
     };
     let gmesh = channel.target().node().mesh().expect("checked above");
     let sampler = channel.sampler();
     if sampler.interpolation() == gltf::animation::Interpolation::CubicSpline {
-        return Err(Error::param_value(
-            Param::Body,
-            format!(
-                "`{}`: the weights track is a cubic spline; linear or step weights are read",
-                path.display()
-            ),
-        ));
+        return Err(Error::value(format!(
+            "`{}`: the weights track is a cubic spline; linear or step weights are read",
+            path.display()
+        )));
     }
     let reader = channel.reader(buffer);
     let times: Vec<f64> = reader
@@ -407,14 +386,9 @@ pub fn load_gltf_sequence(
         Some(f) => f,
         None if uniform && spacing > 0.0 => 1.0 / spacing,
         None => {
-            return Err(Error::param_value(
-                Param::BodyFps,
-                format!(
-                    "missing: the keys of `{}` are not evenly spaced; give the rate to sample \
-                     the body at",
-                    path.display()
-                ),
-            ))
+            return Err(Error::UnknownRate {
+                path: path.to_path_buf(),
+            })
         }
     };
     let count = ((end - start) * fps + 1e-6).floor() as usize + 1;
@@ -469,16 +443,7 @@ mod tests {
         assert_eq!(p.path(7), Path::new("100%_  7.obj"));
         for bad in ["shell.obj", "s%d_%d.obj", "s%s.obj", "k%d/s%d.obj"] {
             let e = FramePattern::parse(Path::new(bad)).unwrap_err();
-            assert!(
-                matches!(
-                    e,
-                    Error::Param {
-                        param: Param::Body,
-                        ..
-                    }
-                ),
-                "{bad}: {e}"
-            );
+            assert!(matches!(e, Error::Value { .. }), "{bad}: {e}");
         }
     }
 

@@ -6,7 +6,6 @@ use std::str::FromStr;
 use glam::DVec2;
 
 use crate::error::Error;
-use crate::param::Param;
 
 /// A closed analytic curve (`--curve`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -92,10 +91,9 @@ impl FromStr for CurveKind {
             .into_iter()
             .find(|c| c.as_str().eq_ignore_ascii_case(s.trim()))
             .ok_or_else(|| {
-                Error::param_value(
-                    Param::Curve,
-                    format!("`{s}`: expected circle, square, heart, triangle or star"),
-                )
+                Error::value(format!(
+                    "`{s}`: expected circle, square, heart, triangle or star"
+                ))
             })
     }
 }
@@ -108,11 +106,9 @@ mod tests {
     #[test]
     fn curves_parse_and_have_the_lab_sizes() {
         assert_eq!("Heart".parse::<CurveKind>().unwrap(), CurveKind::Heart);
-        assert!("blob"
-            .parse::<CurveKind>()
-            .unwrap_err()
-            .to_string()
-            .contains("`curve`"));
+        let e = "blob".parse::<CurveKind>().unwrap_err();
+        assert!(matches!(e, Error::Value { .. }), "{e}");
+        assert!(e.detail().starts_with("`blob`: expected circle"), "{e}");
         let c = CurveKind::Circle.polyline(0.6, 150);
         assert_eq!(c.len(), 150);
         assert!(c.iter().all(|p| (p.length() - 0.6).abs() < 1e-12));

@@ -14,7 +14,6 @@ use std::path::Path;
 use glam::DVec2;
 
 use crate::error::{Error, Result};
-use crate::param::Param;
 
 /// The built-in Hershey fonts: option name, file, description.
 pub const HERSHEY_FONTS: [(&str, &str, &str); 8] = [
@@ -118,8 +117,8 @@ impl Font {
     /// a `.ttf`/`.otf`/`.ttc` file (its first face).
     ///
     /// # Errors
-    /// [`Error::InvalidOption`] (`--font`) for a name that is neither built in nor an existing
-    /// file; [`Error::Io`] for an unreadable file; [`Error::InvalidInput`] naming the file when
+    /// [`Error::Value`] for a name that is neither built in nor an existing file (the job names
+    /// `--font`); [`Error::Io`] for an unreadable file; [`Error::InvalidInput`] naming the file when
     /// it is not a font with outlines.
     pub fn load(spec: &str) -> Result<FontSource> {
         let key = spec.trim();
@@ -147,13 +146,10 @@ impl Font {
             let names: Vec<&str> = std::iter::once(GRID)
                 .chain(HERSHEY_FONTS.iter().map(|(n, _, _)| *n))
                 .collect();
-            return Err(Error::param_value(
-                Param::Font,
-                format!(
-                    "`{spec}`: not a built-in font ({}) nor a .ttf/.otf file",
-                    names.join(", ")
-                ),
-            ));
+            return Err(Error::value(format!(
+                "`{spec}`: not a built-in font ({}) nor a .ttf/.otf file",
+                names.join(", ")
+            )));
         }
         Ok(FontSource::File(path.to_path_buf()))
     }
@@ -161,14 +157,14 @@ impl Font {
     /// A built-in font by name ([`GRID`] or a [`HERSHEY_FONTS`] name).
     ///
     /// # Errors
-    /// As [`Font::load`], and [`Error::Param`] (`font`) when the name is a file.
+    /// As [`Font::load`], and [`Error::Value`] when the name is a file.
     pub fn builtin(name: &str) -> Result<Font> {
         match Font::load(name)? {
             FontSource::Builtin(font) => Ok(font),
-            FontSource::File(path) => Err(Error::param_value(
-                Param::Font,
-                format!("`{}` is a font file, not a built-in font", path.display()),
-            )),
+            FontSource::File(path) => Err(Error::value(format!(
+                "`{}` is a font file, not a built-in font",
+                path.display()
+            ))),
         }
     }
 
@@ -489,8 +485,8 @@ pub struct TextLayout {
 /// ink centred on the origin.
 ///
 /// # Errors
-/// [`Error::UnknownGlyph`] for the first character the font lacks; [`Error::InvalidOption`]
-/// (`--text`) when there is nothing to draw.
+/// [`Error::UnknownGlyph`] for the first character the font lacks; [`Error::Value`] when there
+/// is nothing to draw (the job names `--text`).
 pub fn layout(font: &Font, text: &str) -> Result<TextLayout> {
     let mut all: Vec<(Vec<DVec2>, bool)> = Vec::new();
     for (row, line) in text.lines().enumerate() {
@@ -513,8 +509,7 @@ pub fn layout(font: &Font, text: &str) -> Result<TextLayout> {
         }
     }
     if all.is_empty() {
-        return Err(Error::param_value(
-            Param::Text,
+        return Err(Error::value(
             "nothing to draw (the text is empty or only spaces)",
         ));
     }

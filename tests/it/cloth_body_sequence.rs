@@ -405,6 +405,21 @@ fn a_body_from_a_morph_animated_gltf_moves_as_its_sequence() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("rig") && err.contains("morph-target"), "{err}");
+    // A bake names the options: the body's, and the one a skinned character is given with.
+    let rigged = ClothJob {
+        body_fps: None,
+        ..job(
+            dir.path(),
+            common::mesh_path("RiggedSimple.gltf"),
+            &dir.path().join("rigged.glb"),
+        )
+    };
+    let err = bake_cloth(&rigged, &mut |_, _| {}).unwrap_err().to_string();
+    assert!(
+        err.starts_with("invalid value for `body`: ")
+            && err.contains("no mesh animated by morph-target weights (a skinned character is given with `rig`)"),
+        "{err}"
+    );
 
     let second = dir.path().join("second.glb");
     let job = ClothJob {

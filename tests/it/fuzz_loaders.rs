@@ -134,8 +134,8 @@ proptest! {
     #[test]
     fn pin_and_vector_parsers_never_panic(s in "[ -~]{0,30}") {
         let _ = s.parse::<PinSpec>();
-        let _ = scenebake::spec::parse_vec3(scenebake::Param::Gravity, &s);
-        let _ = scenebake::spec::parse_numbers::<6>(scenebake::Param::Pin, &s, "box");
+        let _ = scenebake::spec::parse_vec3(&s);
+        let _ = scenebake::spec::parse_numbers::<6>(&s, "box");
     }
 
     #[test]

@@ -15,7 +15,7 @@ use super::{
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::{FrameCache, SolverKind};
 use crate::data::animation::{Clip, SkinnedMesh};
-use crate::error::{Error, Result};
+use crate::error::{Error, ForParam, Result};
 use crate::export::basis::encode_basis_on;
 use crate::export::character::{encode_character_gltf, CharacterHost, CharacterOptions};
 use crate::export::morph::{encode_morph_gltf, AnimatedBody};
@@ -65,7 +65,7 @@ pub fn bake_on_character(
     if job.cycles == 0 {
         return Err(Error::param_value(Param::Cycles, "0: must be at least 1"));
     }
-    let rig_scale = positive(Param::RigScale, job.rig_scale)?;
+    let rig_scale = positive(job.rig_scale).for_param(Param::RigScale)?;
     if !(job.blend_in.is_finite() && job.blend_in >= 0.0) {
         return Err(Error::param_value(
             Param::BlendIn,
@@ -79,7 +79,9 @@ pub fn bake_on_character(
 
     let doc = RigDocument::load(&rig_path)?;
     let rig_warnings = doc.warnings.clone();
-    let clip = doc.clip(job.animation.as_deref().unwrap_or("#0"), Param::Animation)?;
+    let clip = doc
+        .clip(job.animation.as_deref().unwrap_or("#0"))
+        .for_param(Param::Animation)?;
     let skeleton = doc.skeleton()?;
     let all_bodies = doc.body_meshes()?;
     let character_diagonal = {
@@ -96,7 +98,7 @@ pub fn bake_on_character(
     let usd_bodies = (job.usd.is_some() && !job.garment_only).then(|| all_bodies.clone());
     let bodies = exclude_bodies(&doc, all_bodies, &job.body_exclude)?;
     let cycle = clip.duration();
-    let fps = positive(Param::Fps, job.fps.unwrap_or(super::defaults::FPS))?;
+    let fps = positive(job.fps.unwrap_or(super::defaults::FPS)).for_param(Param::Fps)?;
     // Whole frames per loop, so every loop starts on a frame: the bake's rate is adjusted to
     // frames_per_cycle / cycle (29.97 instead of 30 for a 1.0333 s walk).
     let frames_per_cycle = ((cycle * fps).round() as usize).max(1);
@@ -129,7 +131,8 @@ pub fn bake_on_character(
         },
         rig_scale,
         blend_frames as f64 / fps,
-    )?;
+    )
+    .for_param(Param::Animation)?;
     let model = &prepared.model;
     let pinned: Vec<u32> = (0..model.particle_count() as u32)
         .filter(|&i| model.pinned[i as usize])
@@ -142,6 +145,17 @@ pub fn bake_on_character(
         }
         None => {
             if !pinned.is_empty() {
+                if !drive.has_body() {
+                    return Err(Error::param_value(
+                        Param::Rig,
+                        text!(
+                            "the character has no skinned mesh to bind the pins to (bind them \
+                             to a joint with ",
+                            Param::PinTo,
+                            ")"
+                        ),
+                    ));
+                }
                 drive.bind_to_surface(&pinned, model.positions())?;
             }
             (pinned.len(), 0)
@@ -222,7 +236,8 @@ pub fn bake_on_character(
                 &options,
                 &basis,
                 host.as_ref(),
-            )?;
+            )
+            .map_err(super::basis_error)?;
             (e.morph, Some(e.basis))
         }
         (None, true) => (

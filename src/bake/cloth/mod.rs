@@ -30,7 +30,7 @@ use crate::cloth::{
     make_solver, simulate, BakeParams, ClothModel, LinearSolver, Simulation, SolverKind, StepStats,
 };
 use crate::cores::Threads;
-use crate::error::{Error, Result};
+use crate::error::{BasisProblem, Error, ForParam, Result};
 use crate::export::basis::encode_basis_gltf;
 use crate::export::meshopt::compress_files;
 use crate::export::morph::{check_cache, encode_morph_gltf_with_body, AnimatedBody};
@@ -39,7 +39,7 @@ use crate::export::pointcache::{
 };
 use crate::export::usd::{check_usd_path, encode_usd, UsdMesh, UsdOptions, UsdPoints};
 use crate::export::vat::{encode_vat, vat_paths};
-use crate::export::{BasisOptions, Compression, QuantizeMode};
+use crate::export::{BasisOptions, BasisSize, Compression, QuantizeMode};
 use crate::export::{MorphOptions, RenderFrames, VatOptions, Written};
 use crate::io::{collider, gltf_mesh::load_gltf_mesh, obj, tet::load_tet};
 use crate::measure::FrameQuality;
@@ -89,7 +89,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
             "0: must be at least 1",
         ));
     }
-    positive(Param::StrainLimit, job.strain_limit)?;
+    positive(job.strain_limit).for_param(Param::StrainLimit)?;
     if job.threads == Some(0) {
         return Err(Error::param_value(Param::Threads, "0: must be at least 1"));
     }
@@ -183,49 +183,41 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         }
     }
     // The labs' spring model: the preset, `--stiffness`/`--bend-stiffness`, and volumes.
-    let stiffness = positive(
-        Param::Stiffness,
-        job.stiffness.unwrap_or(if is_preset {
-            preset::defaults::STIFFNESS
-        } else {
-            defaults::STIFFNESS
-        }),
-    )?;
-    let bend_stiffness = non_negative(
-        Param::BendStiffness,
-        job.bend_stiffness.unwrap_or(if is_preset {
-            stiffness
-        } else {
-            defaults::BEND_STIFFNESS
-        }),
-    )?;
+    let stiffness = positive(job.stiffness.unwrap_or(if is_preset {
+        preset::defaults::STIFFNESS
+    } else {
+        defaults::STIFFNESS
+    }))
+    .for_param(Param::Stiffness)?;
+    let bend_stiffness = non_negative(job.bend_stiffness.unwrap_or(if is_preset {
+        stiffness
+    } else {
+        defaults::BEND_STIFFNESS
+    }))
+    .for_param(Param::BendStiffness)?;
     let material = resolve_material(job)?;
-    let damping = non_negative(
-        Param::Damping,
-        job.damping.unwrap_or(if is_preset {
-            preset::defaults::DAMPING
-        } else {
-            defaults::DAMPING
-        }),
-    )?;
-    let fps = positive(
-        Param::Fps,
-        job.fps.unwrap_or(if is_preset {
-            preset::defaults::FPS
-        } else {
-            defaults::FPS
-        }),
-    )?;
+    let damping = non_negative(job.damping.unwrap_or(if is_preset {
+        preset::defaults::DAMPING
+    } else {
+        defaults::DAMPING
+    }))
+    .for_param(Param::Damping)?;
+    let fps = positive(job.fps.unwrap_or(if is_preset {
+        preset::defaults::FPS
+    } else {
+        defaults::FPS
+    }))
+    .for_param(Param::Fps)?;
     let gravity = job.gravity.unwrap_or(DVec3::from_array(if is_preset {
         preset::defaults::GRAVITY
     } else {
         defaults::GRAVITY
     }));
     if let Some(m) = job.mass {
-        positive(Param::Mass, m)?;
+        positive(m).for_param(Param::Mass)?;
     }
     if let Some(d) = job.density {
-        positive(Param::Density, d)?;
+        positive(d).for_param(Param::Density)?;
     }
     check_export_options(job)?;
 
@@ -329,12 +321,15 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         }
     };
     let material = uses_material.then_some(material);
-    let size_warning = crate::export::estimate::check_frames(
+    let size_warning = check_frames(
         frames,
         mesh.render_vertices.len(),
         job.normals == Switch::On,
     )?;
-    for (flag, extra) in pinned.iter_mut().zip(pinned_flags(&mesh, &job.pin)?) {
+    for (flag, extra) in pinned
+        .iter_mut()
+        .zip(pinned_flags(&mesh, &job.pin).for_param(Param::Pin)?)
+    {
         *flag |= extra;
     }
     let mass = match (job.mass, job.density, is_preset) {
@@ -374,7 +369,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         gravity,
         solver: job.solver,
         iterations: job.max_iterations.unwrap_or(job.iterations),
-        tolerance: non_negative(Param::Tolerance, job.tolerance)?,
+        tolerance: non_negative(job.tolerance).for_param(Param::Tolerance)?,
         max_newton: job.max_iterations.unwrap_or(job.max_newton),
         // The sweeps do not see the cloth's pairs: cut where they would pass through, their
         // passes leave pairs at the bottom of their barriers, and Newton stalls there (the draped
@@ -392,7 +387,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         },
         self_contact: match job.self_contact {
             Switch::On => Some(match job.self_thickness {
-                Some(t) => positive(Param::SelfThickness, t)?,
+                Some(t) => positive(t).for_param(Param::SelfThickness)?,
                 None => colliders.thickness,
             }),
             Switch::Off => None,
@@ -507,10 +502,10 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
     let preset = job.material.unwrap_or(DEFAULT_MATERIAL);
     let mut m = preset.material();
     if let Some(v) = job.stretch {
-        m.stretch = positive(Param::Stretch, v)?;
+        m.stretch = positive(v).for_param(Param::Stretch)?;
     }
     if let Some(v) = job.bend {
-        m.bend = non_negative(Param::Bend, v)?;
+        m.bend = non_negative(v).for_param(Param::Bend)?;
     }
     if let Some(v) = job.compression {
         if !(0.0..=1.0).contains(&v) {
@@ -538,7 +533,7 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
         m.bend_rest = r;
     }
     if let Some(d) = job.density {
-        m.density = positive(Param::Density, d)?;
+        m.density = positive(d).for_param(Param::Density)?;
     }
     Ok(MaterialReport {
         preset,
@@ -548,7 +543,7 @@ fn resolve_material(job: &ClothJob) -> Result<MaterialReport> {
 
 /// Applies `--up`, `--scale` and `--translate` to a loaded body.
 fn place(mesh: &mut Mesh, job: &ClothJob) -> Result<()> {
-    let scale = positive(Param::Scale, job.scale)?;
+    let scale = positive(job.scale).for_param(Param::Scale)?;
     let translate = job.translate.unwrap_or(DVec3::ZERO);
     if !translate.is_finite() {
         return Err(Error::param_value(Param::Translate, "must be finite"));
@@ -572,6 +567,7 @@ fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
         .collider
         .iter()
         .map(|spec| {
+            // The loader's and the specification's value errors are the collider's.
             Collider::from_spec(spec, &|path, part| {
                 let mut mesh = collider::load_collider_mesh(path, part)?;
                 // A collider file comes from the same tool as the input: turned by --up too
@@ -583,16 +579,17 @@ fn prepare_colliders(job: &ClothJob, model: &ClothModel) -> Result<Colliders> {
                 }
                 MeshCollider::from_mesh(path, mesh.positions, mesh.triangles)
             })
+            .for_param(Param::Collider)
         })
         .collect::<Result<Vec<_>>>()?;
     let thickness = match job.thickness {
-        Some(t) => positive(Param::Thickness, t)?,
+        Some(t) => positive(t).for_param(Param::Thickness)?,
         None => DEFAULT_THICKNESS_FRACTION * mean_edge_length(model),
     };
     Ok(Colliders {
         shapes,
         thickness,
-        friction: non_negative(Param::Friction, job.friction)?,
+        friction: non_negative(job.friction).for_param(Param::Friction)?,
         // The fast solver's filtered solve holds particles at the thickness, as the constraint
         // does: the report says so.
         model: match job.solver {
@@ -630,30 +627,44 @@ fn prepare_wind(job: &ClothJob) -> Result<Option<Wind>> {
     }
     Ok(Some(Wind {
         velocity: job.wind.unwrap_or(DVec3::ZERO),
-        drag: non_negative(Param::Drag, job.drag.unwrap_or(wind::DEFAULT_DRAG))?,
-        lift: non_negative(Param::Lift, job.lift.unwrap_or(wind::DEFAULT_LIFT))?,
-        turbulence: non_negative(Param::Turbulence, job.turbulence)?,
+        drag: non_negative(job.drag.unwrap_or(wind::DEFAULT_DRAG)).for_param(Param::Drag)?,
+        lift: non_negative(job.lift.unwrap_or(wind::DEFAULT_LIFT)).for_param(Param::Lift)?,
+        turbulence: non_negative(job.turbulence).for_param(Param::Turbulence)?,
         seed: job.seed,
     }))
 }
 
-/// Checks the export options that need no mesh: `--keyframe-tolerance`, `--vat`,
-/// `--vat-max-width`, `--pc2`, `--mdd` and `--usd`.
+/// Checks the export options that need no mesh, once, before anything is simulated:
+/// `--keyframe-tolerance`, `--basis-tolerance`, `--max-targets` (and that it allows a fixed
+/// `--basis`), `--quantize`, `--vat`, `--vat-max-width`, `--pc2`, `--mdd` and `--usd`. The
+/// writers take these values as checked.
 ///
 /// # Errors
-/// [`Error::InvalidOption`] naming the option.
+/// [`Error::Param`] naming the option.
 pub fn check_export_options(job: &ClothJob) -> Result<()> {
     if let Some(t) = job.keyframe_tolerance {
-        non_negative(Param::KeyframeTolerance, t)?;
+        non_negative(t).for_param(Param::KeyframeTolerance)?;
     }
     if let Some(m) = job.basis_tolerance {
-        non_negative(Param::BasisTolerance, m)?;
+        non_negative(m).for_param(Param::BasisTolerance)?;
     }
     if job.max_targets == Some(0) {
         return Err(Error::param_value(
             Param::MaxTargets,
             "0: must be at least 1",
         ));
+    }
+    if let (Some(BasisSize::Fixed(k)), Some(n)) = (job.basis, job.max_targets) {
+        if k > n {
+            return Err(Error::param_value(
+                Param::MaxTargets,
+                text!(
+                    format!("{n}: fewer than the {k} targets "),
+                    Param::Basis,
+                    " asks for"
+                ),
+            ));
+        }
     }
     if job.basis.is_none() {
         if job.basis_tolerance.is_some() {
@@ -682,7 +693,7 @@ pub fn check_export_options(job: &ClothJob) -> Result<()> {
         }
     }
     if let Some(path) = &job.vat {
-        vat_paths(path)?;
+        vat_paths(path).for_param(Param::Vat)?;
     }
     check_point_cache_options(job)?;
     if job.vat_max_width == 0 {
@@ -730,9 +741,10 @@ fn check_point_cache_options(job: &ClothJob) -> Result<()> {
     for (param, path) in caches {
         let Some(path) = path else { continue };
         match param {
-            Param::Usd => check_usd_path(path)?,
-            _ => check_point_cache_path(param, path)?,
+            Param::Usd => check_usd_path(path),
+            _ => check_point_cache_path(path),
         }
+        .for_param(param)?;
         let key = same_file_key(path);
         if let Some((other, other_path)) = others.iter().find(|(_, o)| same_file_key(o) == key) {
             return Err(Error::param_value(
@@ -828,8 +840,11 @@ pub fn load_body(path: &Path, job: &ClothJob) -> Result<Mesh> {
             &obj::ObjOptions {
                 object: job.object.clone(),
             },
-        ),
-        Some("gltf") | Some("glb") => load_gltf_mesh(path, job.mesh.as_deref()),
+        )
+        .for_param(Param::Object),
+        Some("gltf") | Some("glb") => {
+            load_gltf_mesh(path, job.mesh.as_deref()).for_param(Param::Mesh)
+        }
         Some("tet") => load_tet(path),
         _ => Err(Error::invalid(
             path,
@@ -857,7 +872,41 @@ pub fn output_size_warning(job: &ClothJob) -> Result<Option<Text>> {
         },
         _ => return Ok(None),
     };
-    crate::export::estimate::check_frames(frames, vertices, job.normals == Switch::On)
+    check_frames(frames, vertices, job.normals == Switch::On)
+}
+
+/// Checks a cloth bake of `frames` frames after the initial state over `vertices` render
+/// vertices ([`crate::export::estimate`]): an error naming `--frames` when the cache would not
+/// fit in a GLB, a warning (returned) when it is large.
+///
+/// # Errors
+/// [`Error::Param`] naming `--frames`.
+fn check_frames(frames: usize, vertices: usize, normals: bool) -> Result<Option<Text>> {
+    use crate::export::estimate::{cache_size, human, CacheSize};
+    match cache_size(frames, vertices, normals) {
+        CacheSize::Fits => Ok(None),
+        CacheSize::Large { bytes } => Ok(Some(text!(
+            format!(
+                "the output will be about {} ({frames} frames of {vertices} vertices); ",
+                human(bytes)
+            ),
+            Param::KeyframeTolerance,
+            " can shrink it"
+        ))),
+        CacheSize::TooLarge { bytes, most_frames } => Err(Error::param_value(
+            Param::Frames,
+            text!(
+                format!(
+                    "{frames}: {frames} frames of {vertices} vertices need about {} in memory and \
+                     in the output, over the 4.3 GB a GLB can hold; at most {most_frames} frames \
+                     fit (",
+                    human(bytes),
+                ),
+                Param::KeyframeTolerance,
+                " shrinks the file, not the bake)"
+            ),
+        )),
+    }
 }
 
 /// `--basis-tolerance` when neither it nor `--keyframe-tolerance` is given: 1 mm.
@@ -1184,7 +1233,7 @@ pub(crate) fn encode_vat_files(
         normals: job.normals == Switch::On,
         gltf,
     };
-    let encoded = encode_vat(path, frames, &options)?;
+    let encoded = encode_vat(path, frames, &options).for_param(Param::Vat)?;
     let report = VatReport {
         files: encoded.files.iter().map(|(p, _)| p.clone()).collect(),
         bytes: encoded.files.iter().map(|(_, b)| b.len() as u64).sum(),
@@ -1255,7 +1304,7 @@ pub(crate) fn encode_usd_layer(
         start_time: options.start_time,
         frames,
     };
-    let encoded = encode_usd(path, &meshes, &usd_options)?;
+    let encoded = encode_usd(path, &meshes, &usd_options).for_param(Param::Usd)?;
     let report = UsdReport {
         file: encoded.path.clone(),
         bytes: encoded.bytes.len() as u64,
@@ -1278,6 +1327,47 @@ pub(crate) fn basis_options(job: &ClothJob) -> Option<BasisOptions> {
         max_targets: job.max_targets,
         quantize: job.quantize.unwrap_or_default(),
     })
+}
+
+/// A basis writer's error in the job's words: what stands in the way of `--basis` named by the
+/// option that can change it (`--basis`, `--max-targets` or `--basis-tolerance`).
+pub(crate) fn basis_error(e: Error) -> Error {
+    let Error::Basis { problem, .. } = e else {
+        return e;
+    };
+    match problem {
+        BasisProblem::TooFewFrames { targets, available } => Error::param_value(
+            Param::Basis,
+            format!("{targets} targets: the bake has only {available} frames after frame 0"),
+        ),
+        BasisProblem::ToleranceUnmet {
+            tolerance,
+            cap,
+            best,
+            best_error,
+            max_targets,
+        } => {
+            let message = format!(
+                "{tolerance} m cannot be met with at most {cap} targets (best: {best} targets, \
+                 {best_error:.3e} m); raise it, or allow more targets"
+            );
+            match max_targets {
+                Some(n) => Error::param_value(
+                    Param::MaxTargets,
+                    text!(
+                        format!("{n}: "),
+                        Param::BasisTolerance,
+                        format!(" {message}")
+                    ),
+                ),
+                None => Error::param_value(Param::BasisTolerance, message),
+            }
+        }
+        BasisProblem::TooManyTargets { needed } => Error::param_value(
+            Param::MaxTargets,
+            format!("fewer than the {needed} targets the basis needs"),
+        ),
+    }
 }
 
 /// Refuses a per-frame morph cache of more targets than `--max-targets` allows, suggesting a
@@ -1320,7 +1410,8 @@ fn export(
     let frames = RenderFrames::new(&model.mesh, cache);
     let (morph, basis) = match basis_options(job) {
         Some(basis) => {
-            let e = encode_basis_gltf(&job.output, &model.mesh, &frames, &options, &basis)?;
+            let e = encode_basis_gltf(&job.output, &model.mesh, &frames, &options, &basis)
+                .map_err(basis_error)?;
             (e.morph, Some(e.basis))
         }
         None => {
@@ -1496,4 +1587,40 @@ pub fn convergence_warning(frames: &[StepStats], tolerance: f64) -> Option<Text>
         Param::Substeps,
         ", or see unconverged_frames"
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn flag(p: Param) -> String {
+        format!("--{}", p.key().replace('_', "-"))
+    }
+
+    #[test]
+    fn frames_past_a_glb_are_refused_naming_frames() {
+        // 961 vertices with normals: 23,064 bytes a frame; 186,217 frames fit in 4 GiB.
+        let fit = (u32::MAX as u64 / 23_064) as usize;
+        assert!(check_frames(fit - 1, 961, true).is_ok());
+        let e = check_frames(fit, 961, true).unwrap_err().to_string();
+        assert!(e.starts_with("invalid value for `frames`: "), "{e}");
+        assert!(
+            e.contains(&format!("at most {} frames fit", fit - 1)),
+            "{e}"
+        );
+        assert!(check_frames(1_000_000_000, 961, true).is_err());
+        assert_eq!(check_frames(120, 961, true).unwrap(), None);
+        assert!(check_frames(50_000, 961, true).unwrap().is_some());
+    }
+
+    /// The trial run's trap: `--frames 20000` on an 8k-vertex skirt wrote gigabytes silently.
+    #[test]
+    fn twenty_thousand_frames_of_a_skirt_warn_with_the_size() {
+        let warning = check_frames(20_000, 8121, true).unwrap().unwrap();
+        assert_eq!(
+            warning.render(&flag),
+            "the output will be about 3.9 GB (20000 frames of 8121 vertices); \
+             --keyframe-tolerance can shrink it"
+        );
+    }
 }

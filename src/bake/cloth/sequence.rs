@@ -16,13 +16,41 @@ use super::{
 };
 use crate::cloth::drive::SequenceDrive;
 use crate::cloth::{FrameCache, SolverKind};
-use crate::error::{Error, Result};
+use crate::error::{Error, ForParam, Result};
 use crate::export::{AnimatedBody, MorphOptions, RenderFrames};
 use crate::io::sequence::{load_gltf_sequence, load_obj_sequence};
 use crate::param::Param;
 use crate::spec::positive;
 use crate::spec::split_mesh_part;
 use crate::text;
+
+/// A glTF body sequence's errors in the job's words: the options that answer them.
+fn sequence_error(e: Error) -> Error {
+    match e {
+        Error::NoMorphAnimation { path, part } => Error::param_value(
+            Param::Body,
+            text!(
+                format!(
+                    "`{}`: no mesh{} animated by morph-target weights (a skinned character is \
+                     given with ",
+                    path.display(),
+                    part.map_or_else(String::new, |p| format!(" named `{p}`"))
+                ),
+                Param::Rig,
+                ")"
+            ),
+        ),
+        Error::UnknownRate { path } => Error::param_value(
+            Param::BodyFps,
+            format!(
+                "missing: the keys of `{}` are not evenly spaced; give the rate to sample the \
+                 body at",
+                path.display()
+            ),
+        ),
+        e => e,
+    }
+}
 
 /// Runs a `--body` bake: check the options, read the sequence, simulate, export, report.
 ///
@@ -92,16 +120,18 @@ pub fn bake_on_sequence(
     }
     let body_fps = job
         .body_fps
-        .map(|f| positive(Param::BodyFps, f))
+        .map(|f| positive(f).for_param(Param::BodyFps))
         .transpose()?;
     if let Some(fps) = job.fps {
-        positive(Param::Fps, fps)?;
+        positive(fps).for_param(Param::Fps)?;
     }
     super::check_export_options(job)?;
 
     let sequence = match body_fps {
-        _ if is_gltf => load_gltf_sequence(&file, part.as_deref(), body_fps)?,
-        Some(f) => load_obj_sequence(&pattern, f, job.body_start)?,
+        _ if is_gltf => load_gltf_sequence(&file, part.as_deref(), body_fps)
+            .map_err(sequence_error)
+            .for_param(Param::Body)?,
+        Some(f) => load_obj_sequence(&pattern, f, job.body_start).for_param(Param::Body)?,
         None => {
             return Err(Error::param_value(
                 Param::BodyFps,
@@ -114,7 +144,7 @@ pub fn bake_on_sequence(
         }
     };
     let body_fps = sequence.fps;
-    let fps = positive(Param::Fps, job.fps.unwrap_or(body_fps))?;
+    let fps = positive(job.fps.unwrap_or(body_fps)).for_param(Param::Fps)?;
     let duration = sequence.duration();
     // Frames that fit in the sequence (a hair of slack for 1/3-style rates).
     let whole = (duration * fps + 1e-9).floor() as usize;

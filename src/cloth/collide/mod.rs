@@ -21,7 +21,6 @@ use glam::DVec3;
 
 use crate::data::StaticMesh;
 use crate::error::{Error, Result};
-use crate::param::Param;
 use crate::spec::parse_numbers;
 pub use contact::ContactModel;
 pub use mesh::MeshCollider;
@@ -71,13 +70,13 @@ impl FromStr for ColliderSpec {
     fn from_str(s: &str) -> Result<Self> {
         const FORMS: &str =
             "plane:NX,NY,NZ,D, sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or mesh:FILE[#NAME]";
-        let bad = |m: String| Error::param_value(Param::Collider, format!("`{s}`: {m}"));
+        let bad = |m: String| Error::value(format!("`{s}`: {m}"));
         let (kind, rest) = s
             .split_once(':')
             .ok_or_else(|| bad(format!("expected {FORMS}")))?;
         match kind.trim() {
             "plane" => {
-                let c = parse_numbers::<4>(Param::Collider, rest, "plane:NX,NY,NZ,D")?;
+                let c = parse_numbers::<4>(rest, "plane:NX,NY,NZ,D")?;
                 let n = DVec3::new(c[0], c[1], c[2]);
                 if n.length() == 0.0 {
                     return Err(bad("the plane's normal is zero".into()));
@@ -85,14 +84,14 @@ impl FromStr for ColliderSpec {
                 Ok(ColliderSpec::Plane(n, c[3]))
             }
             "sphere" => {
-                let c = parse_numbers::<4>(Param::Collider, rest, "sphere:X,Y,Z,R")?;
+                let c = parse_numbers::<4>(rest, "sphere:X,Y,Z,R")?;
                 if c[3] <= 0.0 {
                     return Err(bad(format!("radius {} must be positive", c[3])));
                 }
                 Ok(ColliderSpec::Sphere(DVec3::new(c[0], c[1], c[2]), c[3]))
             }
             "box" => {
-                let c = parse_numbers::<6>(Param::Collider, rest, "box:X0,Y0,Z0,X1,Y1,Z1")?;
+                let c = parse_numbers::<6>(rest, "box:X0,Y0,Z0,X1,Y1,Z1")?;
                 let (a, b) = (DVec3::new(c[0], c[1], c[2]), DVec3::new(c[3], c[4], c[5]));
                 if a.cmpeq(b).any() {
                     return Err(bad("the box is flat: give two opposite corners".into()));
@@ -156,17 +155,16 @@ impl Collider {
     /// of it the spec names (the caller's loader: file reading lives in [`crate::io`]).
     ///
     /// # Errors
-    /// The mesh loader's errors, naming the file.
+    /// [`Error::Value`] for a plane whose normal is zero; the mesh loader's errors, naming the
+    /// file.
     pub fn from_spec(
         spec: &ColliderSpec,
         load_mesh: &dyn Fn(&std::path::Path, Option<&str>) -> Result<MeshCollider>,
     ) -> Result<Self> {
         Ok(match spec {
-            ColliderSpec::Plane(n, d) => {
-                Collider::Plane(HalfSpace::new(*n, *d).ok_or_else(|| {
-                    Error::param_value(Param::Collider, "the plane's normal is zero")
-                })?)
-            }
+            ColliderSpec::Plane(n, d) => Collider::Plane(
+                HalfSpace::new(*n, *d).ok_or_else(|| Error::value("the plane's normal is zero"))?,
+            ),
             ColliderSpec::Sphere(centre, radius) => Collider::Sphere(Ball {
                 centre: *centre,
                 radius: *radius,
