@@ -7,19 +7,17 @@ use glam::DVec3;
 use std::time::Instant;
 
 use super::{
-    basis_options, check_export_options, check_target_count, compress, encode_point_caches,
-    encode_usd_layer, encode_vat_files, length_words, prepare_cloth, quality_report, report,
-    scaled_words, simulate_on_body, CacheReport, CharacterReport, ClothJob, ClothReport, Exported,
-    PreparedCloth, Switch,
+    check_export_options, export, length_words, prepare_cloth, quality_report, report,
+    scaled_words, simulate_on_body, CharacterReport, ClothJob, ClothReport, Host, PreparedCloth,
+    Switch,
 };
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::{FrameCache, SolverKind};
 use crate::data::animation::{Clip, SkinnedMesh};
 use crate::error::{Error, ForParam, Result};
-use crate::export::basis::encode_basis_on;
-use crate::export::character::{encode_character_gltf, CharacterHost, CharacterOptions};
-use crate::export::morph::{encode_morph_gltf, AnimatedBody};
-use crate::export::{MorphOptions, RenderFrames, Written};
+use crate::export::character::{CharacterHost, CharacterOptions};
+use crate::export::morph::AnimatedBody;
+use crate::export::{MorphOptions, RenderFrames};
 use crate::io::rig::RigDocument;
 use crate::mesh::Mesh;
 use crate::param::Param;
@@ -216,77 +214,29 @@ pub fn bake_on_character(
         Some(meshes) => skinned_frames(&doc, meshes, &drive, &clip, cache.frame_count(), fps),
         None => Vec::new(),
     };
-    crate::export::morph::check_cache(&job.output, &model.mesh, &cache)?;
-    let frames = RenderFrames::new(&model.mesh, &cache);
     let character = CharacterOptions {
         clip: &clip,
         cycles: job.cycles,
         rig_scale,
     };
-    let (morph, basis) = match (basis_options(job), job.garment_only) {
-        (Some(basis), garment_only) => {
-            let host = (!garment_only).then_some(CharacterHost {
-                doc,
-                character: &character,
-            });
-            let e = encode_basis_on(
-                &job.output,
-                &model.mesh,
-                &frames,
-                &options,
-                &basis,
-                host.as_ref(),
-            )
-            .map_err(super::basis_error)?;
-            (e.morph, Some(e.basis))
-        }
-        (None, true) => (
-            encode_morph_gltf(&job.output, &model.mesh, &frames, &options)?,
-            None,
-        ),
-        (None, false) => (
-            encode_character_gltf(&job.output, doc, &model.mesh, &frames, &options, &character)?,
-            None,
-        ),
-    };
-    if basis.is_none() {
-        check_target_count(job, morph.stats.targets)?;
-    }
-    let mut files = compress(job, morph.files)?;
-    let gltf_bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
-    // The VAT holds the written loops as the glTF's garment mesh does (its object space, metres;
-    // the glTF's garment node scales them by 1 / --rig-scale), frame 0 at the animation's start.
-    let (vat_files, vat) = encode_vat_files(job, &frames, fps, options.start_time)?;
-    files.extend(vat_files);
-    // The caches hold the written loops as the glTF's garment mesh does (metres; the glTF's
-    // garment node scales them by 1 / --rig-scale), keyed on the animation's times.
-    let (cache_files, point_caches) =
-        encode_point_caches(job, &model.mesh, &cache, fps, options.start_time)?;
-    files.extend(cache_files);
+    let host = (!job.garment_only).then(|| {
+        Box::new(CharacterHost {
+            doc,
+            character: &character,
+        })
+    });
     let usd_body: Vec<AnimatedBody<'_>> = body_frames
         .iter()
         .map(|(name, mesh, frames)| AnimatedBody { name, mesh, frames })
         .collect();
-    let usd = match encode_usd_layer(job, &model.mesh, &cache, &options, &usd_body)? {
-        Some((file, report)) => {
-            files.push(file);
-            Some(report)
-        }
-        None => None,
-    };
-    let written = Written::write_all(files)?;
-    let exported = Exported {
-        written,
-        cache: CacheReport {
-            keyframe_tolerance: options.keyframe_tolerance,
-            gltf_bytes,
-            stats: morph.stats,
-            basis,
-        },
-        vat,
-        point_caches,
-        usd,
-    };
+    let exported = export(
+        job,
+        model,
+        &cache,
+        options,
+        Host::Character(host),
+        &usd_body,
+    )?;
     let seconds_export = export_start.elapsed().as_secs_f64();
     let quality = quality_report(&sim, job.strain_limit);
     let mut out = report(

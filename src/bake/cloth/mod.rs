@@ -31,9 +31,12 @@ use crate::cloth::{
 };
 use crate::cores::Threads;
 use crate::error::{BasisProblem, Error, ForParam, Result};
-use crate::export::basis::encode_basis_gltf;
+use crate::export::basis::encode_basis_on;
+use crate::export::character::{encode_character_gltf, CharacterHost};
 use crate::export::meshopt::compress_files;
-use crate::export::morph::{check_cache, encode_morph_gltf_with_body, AnimatedBody};
+use crate::export::morph::{
+    check_cache, encode_morph_gltf, encode_morph_gltf_with_body, AnimatedBody,
+};
 use crate::export::pointcache::{
     check_point_cache_path, encode_point_cache, PointCacheFormat, PointCacheOptions,
 };
@@ -985,7 +988,7 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
         static_meshes: collider_meshes(model, &params.colliders),
         start_time: 0.0,
     };
-    let exported = export(job, model, &sim.cache, options, None)?;
+    let exported = export(job, model, &sim.cache, options, Host::Alone(None), &[])?;
     let seconds_export = export_start.elapsed().as_secs_f64();
     let quality = quality_report(&sim, job.strain_limit);
     Ok(report(
@@ -1211,7 +1214,7 @@ fn encode_point_caches(
 /// Encodes the vertex-animation texture `--vat` asks for, if any: every frame of `frames` (the
 /// glTF's render vertices, in its vertex order; frame 0 keyed at `start_time` on the glTF's
 /// animation, frame k at `start_time + k / fps`), its manifest naming the job's glTF.
-pub(crate) fn encode_vat_files(
+fn encode_vat_files(
     job: &ClothJob,
     frames: &RenderFrames,
     fps: f64,
@@ -1245,7 +1248,7 @@ pub(crate) fn encode_vat_files(
 /// Encodes the USD layer `--usd` asks for: the cloth (`cache`'s frames of `mesh`'s particles,
 /// frame k at time code `start_time × fps + k`), the static meshes and the moving `bodies` (a
 /// mesh sequence, a character's skinned meshes), each a mesh with time-sampled points.
-pub(crate) fn encode_usd_layer(
+fn encode_usd_layer(
     job: &ClothJob,
     mesh: &Mesh,
     cache: &crate::cloth::FrameCache,
@@ -1317,7 +1320,7 @@ pub(crate) fn encode_usd_layer(
 }
 
 /// The basis cache `--basis` asks for, if any.
-pub(crate) fn basis_options(job: &ClothJob) -> Option<BasisOptions> {
+fn basis_options(job: &ClothJob) -> Option<BasisOptions> {
     job.basis.map(|size| BasisOptions {
         size,
         tolerance: job
@@ -1331,7 +1334,7 @@ pub(crate) fn basis_options(job: &ClothJob) -> Option<BasisOptions> {
 
 /// A basis writer's error in the job's words: what stands in the way of `--basis` named by the
 /// option that can change it (`--basis`, `--max-targets` or `--basis-tolerance`).
-pub(crate) fn basis_error(e: Error) -> Error {
+fn basis_error(e: Error) -> Error {
     let Error::Basis { problem, .. } = e else {
         return e;
     };
@@ -1372,7 +1375,7 @@ pub(crate) fn basis_error(e: Error) -> Error {
 
 /// Refuses a per-frame morph cache of more targets than `--max-targets` allows, suggesting a
 /// basis or a larger keyframe tolerance.
-pub(crate) fn check_target_count(job: &ClothJob, targets: usize) -> Result<()> {
+fn check_target_count(job: &ClothJob, targets: usize) -> Result<()> {
     match job.max_targets.filter(|&n| targets > n) {
         Some(n) => Err(Error::param_value(
             Param::MaxTargets,
@@ -1388,7 +1391,7 @@ pub(crate) fn check_target_count(job: &ClothJob, targets: usize) -> Result<()> {
 }
 
 /// The glTF's files after `--compress`: as encoded, or with EXT_meshopt_compression.
-pub(crate) fn compress(
+fn compress(
     job: &ClothJob,
     files: Vec<(std::path::PathBuf, Vec<u8>)>,
 ) -> Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
@@ -1398,37 +1401,63 @@ pub(crate) fn compress(
     }
 }
 
-/// Encodes the morph glTF and, when asked, the VAT, then writes them all as one atomic set.
+/// The glTF document a bake's cache is written into.
+enum Host<'a> {
+    /// The cloth's own document, with the body it moved on beside it (a mesh sequence).
+    Alone(Option<AnimatedBody<'a>>),
+    /// A character's document with the garment added to it, or (`None`: `--garment-only`) the
+    /// garment alone, keyed on the character's animation.
+    Character(Option<Box<CharacterHost<'a>>>),
+}
+
+/// Writes a bake's every file through one pipeline, whatever its host: the glTF (a per-frame
+/// morph cache or a morph basis, `--max-targets` held), compressed as asked, then the VAT, the
+/// point caches and the USD layer (with `usd_bodies` beside the cloth), all in one atomic set.
 fn export(
     job: &ClothJob,
     model: &ClothModel,
     cache: &crate::cloth::FrameCache,
     options: MorphOptions,
-    body: Option<AnimatedBody<'_>>,
+    host: Host<'_>,
+    usd_bodies: &[AnimatedBody<'_>],
 ) -> Result<Exported> {
     check_cache(&job.output, &model.mesh, cache)?;
     let frames = RenderFrames::new(&model.mesh, cache);
-    let (morph, basis) = match basis_options(job) {
-        Some(basis) => {
-            let e = encode_basis_gltf(&job.output, &model.mesh, &frames, &options, &basis)
+    let (path, mesh) = (&job.output, &model.mesh);
+    let (morph, basis) = match (basis_options(job), host) {
+        (Some(basis), host) => {
+            let on = match host {
+                Host::Character(on) => on,
+                Host::Alone(_) => None,
+            };
+            let e = encode_basis_on(path, mesh, &frames, &options, &basis, on.as_deref())
                 .map_err(basis_error)?;
             (e.morph, Some(e.basis))
         }
-        None => {
-            let morph =
-                encode_morph_gltf_with_body(&job.output, &model.mesh, &frames, &options, body)?;
-            check_target_count(job, morph.stats.targets)?;
-            (morph, None)
-        }
+        (None, Host::Alone(body)) => (
+            encode_morph_gltf_with_body(path, mesh, &frames, &options, body)?,
+            None,
+        ),
+        (None, Host::Character(None)) => (encode_morph_gltf(path, mesh, &frames, &options)?, None),
+        (None, Host::Character(Some(host))) => (
+            encode_character_gltf(path, host.doc, mesh, &frames, &options, host.character)?,
+            None,
+        ),
     };
+    if basis.is_none() {
+        check_target_count(job, morph.stats.targets)?;
+    }
     let mut files = compress(job, morph.files)?;
     let gltf_bytes = files.iter().map(|(_, b)| b.len() as u64).sum();
+    // A character's VAT and point caches hold the written loops as the glTF's garment mesh
+    // does (its object space, metres; the garment node scales them by 1 / --rig-scale), frame 0
+    // at the animation's start (`options.start_time`).
     let (vat_files, vat) = encode_vat_files(job, &frames, options.fps, options.start_time)?;
     files.extend(vat_files);
     let (cache_files, point_caches) =
-        encode_point_caches(job, &model.mesh, cache, options.fps, options.start_time)?;
+        encode_point_caches(job, mesh, cache, options.fps, options.start_time)?;
     files.extend(cache_files);
-    let usd = match encode_usd_layer(job, &model.mesh, cache, &options, body.as_slice())? {
+    let usd = match encode_usd_layer(job, mesh, cache, &options, usd_bodies)? {
         Some((file, report)) => {
             files.push(file);
             Some(report)

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use super::{
     collider_meshes, export, prepare_cloth, quality_report, report, simulate_on_body, BodyReport,
-    ClothJob, ClothReport, PreparedCloth, Switch,
+    ClothJob, ClothReport, Host, PreparedCloth, Switch,
 };
 use crate::cloth::drive::SequenceDrive;
 use crate::cloth::{FrameCache, SolverKind};
@@ -207,16 +207,18 @@ pub fn bake_on_sequence(
         static_meshes: statics,
         start_time: 0.0,
     };
+    let body = AnimatedBody {
+        name: &body_name,
+        mesh: &sequence.mesh,
+        frames: &body_frames,
+    };
     let exported = export(
         job,
         model,
         &sim.cache,
         options,
-        Some(AnimatedBody {
-            name: &body_name,
-            mesh: &sequence.mesh,
-            frames: &body_frames,
-        }),
+        Host::Alone(Some(body)),
+        &[body],
     )?;
     let seconds_export = export_start.elapsed().as_secs_f64();
     let quality = quality_report(&sim, job.strain_limit);

@@ -258,10 +258,10 @@ mod tests {
             for i in 0..p.len() {
                 let mut v = p[i] * 3.0;
                 if i > 0 {
-                    v = v - p[i - 1];
+                    v -= p[i - 1];
                 }
                 if i + 1 < p.len() {
-                    v = v - p[i + 1];
+                    v -= p[i + 1];
                 }
                 q[i] = v;
             }
