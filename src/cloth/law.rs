@@ -143,17 +143,24 @@ pub(crate) fn spring_local(
     kc: f64,
     jam: f64,
 ) -> Option<(DVec3, f64, DMat3)> {
+    let (f, u, t, p) = spring_parts(r, rest, k, kc, jam)?;
+    Some((
+        u * f,
+        t,
+        DMat3::from_cols(u * (u.x * p), u * (u.y * p), u * (u.z * p)),
+    ))
+}
+
+/// A spring's tension f, direction u = r/|r|, transverse stiffness t = max(f/|r|, 0) and
+/// p = df/d|r| − t, from which its gradient f·u and projected block t·I + p·u uᵀ are built;
+/// `None` for coincident ends.
+#[inline(always)]
+fn spring_parts(r: DVec3, rest: f64, k: f64, kc: f64, jam: f64) -> Option<(f64, DVec3, f64, f64)> {
     let len = r.length();
     if len > 0.0 {
         let (f, along) = spring_response(len, rest, k, kc, jam);
-        let u = r / len;
         let t = (f / len).max(0.0);
-        let p = along - t;
-        Some((
-            u * f,
-            t,
-            DMat3::from_cols(u * (u.x * p), u * (u.y * p), u * (u.z * p)),
-        ))
+        Some((f, r / len, t, along - t))
     } else {
         None
     }
@@ -170,12 +177,7 @@ pub(crate) fn spring_terms(
     kc: f64,
     jam: f64,
 ) -> (DVec3, [[f64; 3]; 3]) {
-    let len = r.length();
-    if len > 0.0 {
-        let (f, along) = spring_response(len, rest, k, kc, jam);
-        let u = r / len;
-        let t = (f / len).max(0.0);
-        let p = along - t;
+    if let Some((f, u, t, p)) = spring_parts(r, rest, k, kc, jam) {
         let he = [
             [t + p * u.x * u.x, p * u.x * u.y, p * u.x * u.z],
             [p * u.y * u.x, t + p * u.y * u.y, p * u.y * u.z],
