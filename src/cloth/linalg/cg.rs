@@ -1,9 +1,10 @@
 //! Preconditioned conjugate gradients, once for every cloth solver: Newton's directions (flat
 //! `f64` vectors, preconditioned by a factor or a multigrid cycle) and the local/global method's
 //! global step while particles are held (x, y, z [`Lanes4`], preconditioned by its constant
-//! factor). Each solver gives the product and the preconditioner as closures and chooses when
-//! to stop ([`Stop`]); the vectors' arithmetic is each element type's own ([`Element`]), so a
-//! solver's iterates have the bits they had with a loop of its own.
+//! factor). Each solver gives its product and preconditioner ([`System`], or two closures in
+//! [`Closures`]) and chooses when to stop ([`Stop`]); the vectors' arithmetic is each element
+//! type's own ([`Element`]), so a solver's iterates have the bits they had with a loop of its
+//! own.
 
 use super::lanes::Lanes4;
 
@@ -88,8 +89,7 @@ impl Element for Lanes4 {
 }
 
 /// The four work vectors of a solve besides its iterate: the residual r, the preconditioned
-/// residual z, the search direction p and the product q = A p (q may share z's storage in a
-/// caller that needs one less vector; here they are distinct).
+/// residual z, the search direction p and the product q = A p.
 #[derive(Debug)]
 pub(crate) struct Work<'a, E> {
     /// r: holds the right-hand side b on entry (the residual of x = 0), the residual on exit.
