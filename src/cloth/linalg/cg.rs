@@ -30,11 +30,10 @@ pub(crate) enum Stop {
 pub(crate) struct Outcome {
     /// Products with the matrix.
     pub products: usize,
-    /// The stopping rule was met with a finite iterate ([`Stop::UpdateAndResidual`] only).
-    pub converged: bool,
-    /// The first step broke down (pᵀAp ≤ 0 or not finite): x holds the preconditioned
+    /// The stopping rule was met with a finite iterate ([`Stop::UpdateAndResidual`] only). When
+    /// the first step breaks down (pᵀAp ≤ 0 or not finite), x holds the preconditioned
     /// right-hand side z, a descent direction.
-    pub broke_down_at_once: bool,
+    pub converged: bool,
 }
 
 /// One entry of a conjugate-gradient vector, with its own arithmetic.
@@ -146,7 +145,6 @@ pub(crate) fn solve<E: Element>(
     let mut out = Outcome {
         products: 0,
         converged: false,
-        broke_down_at_once: false,
     };
     for k in 1..=cap {
         if let Stop::Reduction(t) = stop {
@@ -161,7 +159,6 @@ pub(crate) fn solve<E: Element>(
         if !(alpha.is_finite() && alpha > 0.0) {
             if k == 1 {
                 x.copy_from_slice(z);
-                out.broke_down_at_once = true;
             }
             break;
         }
