@@ -50,6 +50,8 @@ params! {
     Fps => "fps",
     /// Solver steps per frame.
     Substeps => "substeps",
+    /// How many times over a failed step may be halved.
+    Splits => "splits",
     /// The solver.
     Solver => "solver",
     /// The stopping tolerance.

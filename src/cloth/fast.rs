@@ -735,6 +735,7 @@ impl StepSolver for FastSolver {
             converged: residual <= self.tolerance || self.tolerance == 0.0,
             contacts,
             self_contacts: 0,
+            steps: 1,
         })
     }
 }

@@ -71,6 +71,23 @@ pub struct StepStats {
     /// Cloth–cloth pairs (vertex–triangle, edge–edge) inside their self-contact layer at the
     /// end of the step (the most over a frame's substeps; 0 without self-contact).
     pub self_contacts: usize,
+    /// Solver steps taken (1 a step; more where it was split, [`BakeParams::splits`]; summed over
+    /// a frame's substeps).
+    pub steps: usize,
+}
+
+impl StepStats {
+    /// The figures of two steps taken one after the other.
+    fn then(self, next: StepStats) -> StepStats {
+        StepStats {
+            iterations: self.iterations + next.iterations,
+            residual: self.residual.max(next.residual),
+            converged: self.converged && next.converged,
+            contacts: self.contacts.max(next.contacts),
+            self_contacts: self.self_contacts.max(next.self_contacts),
+            steps: self.steps + next.steps,
+        }
+    }
 }
 
 /// A time integrator advancing the free particles of a [`ReducedSystem`] by one step.
@@ -98,6 +115,20 @@ pub trait StepSolver {
     /// as other jobs end); the steps' results do not depend on it. Solvers that run on one
     /// thread ignore it.
     fn set_threads(&mut self, _threads: usize) {}
+
+    /// Keeps what the next step changes besides the particles' positions and velocities (the
+    /// contacts' lagged forces and layers, where a moving body has got to), so that
+    /// [`StepSolver::restore`] can take it again; false when the solver cannot (its steps are
+    /// then never split).
+    fn save(&mut self) -> bool {
+        false
+    }
+
+    /// Returns to what [`StepSolver::save`] kept.
+    fn restore(&mut self) {}
+
+    /// Sets the time step (seconds) of the following steps.
+    fn set_time_step(&mut self, _h: f64) {}
 }
 
 /// Which solver a bake uses.
@@ -120,6 +151,11 @@ pub struct BakeParams {
     pub fps: f64,
     /// Solver steps per frame; the time step is 1 / (fps · substeps) seconds.
     pub substeps: usize,
+    /// How many times over a step may be split: a step that ends above the tolerance, or that
+    /// the solver fails (a non-finite iterate, a Hessian that no longer factors), is taken again
+    /// from its start as two steps of half its length (0: never; solvers that cannot take a
+    /// step again ignore it). See [`StepSolver::save`].
+    pub splits: usize,
     /// Mass-proportional damping in 1/s.
     pub damping: f64,
     /// Gravity in m/s².
@@ -320,35 +356,19 @@ pub fn simulate_driven(
     for frame in 1..=params.frames {
         let threads = params.threads.now();
         solver.set_threads(threads);
-        let mut stats = StepStats {
-            iterations: 0,
-            residual: 0.0,
-            converged: true,
-            contacts: 0,
-            self_contacts: 0,
-        };
+        let mut stats: Option<StepStats> = None;
         for substep in 0..params.substeps {
-            if let Some(air) = &mut air {
-                let time = ((frame - 1) * params.substeps + substep) as f64 * h;
-                air.apply(solver.system(), time, h, &x, &mut v);
-            }
-            if let Some(d) = driven {
-                let end = ((frame - 1) * params.substeps + substep + 1) as f64 * h;
-                let pose = d.drive.pose(end);
-                for (b, p) in d.drive.pins().iter().zip(&pose.pins) {
-                    all[b.particle as usize] = *p;
-                }
-                let mut shapes = Vec::new();
-                if let (Some(j), Some(before)) = (d.body_shape, &body_before) {
-                    let moving = collide::Collider::moving(before.clone(), pose.body)?;
-                    if let collide::Collider::Moving { after, .. } = &moving {
-                        body_before = Some(after.clone());
-                    }
-                    shapes.push((j, moving));
-                }
-                solver.drive(&all, shapes)?;
-            }
-            let s = solver.step(&mut x, &mut v).map_err(|e| match e {
+            let step = ((frame - 1) * params.substeps + substep) as u64;
+            let mut run = Stepping {
+                solver: &mut *solver,
+                driven,
+                air: air.as_mut(),
+                all: &mut all,
+                body_before: &mut body_before,
+                x: &mut x,
+                v: &mut v,
+            };
+            let s = run.advance(step, h, params.splits).map_err(|e| match e {
                 // Solvers don't know frames: name the frame being computed.
                 Error::Diverged { reason, advice, .. } => Error::Diverged {
                     frame,
@@ -357,12 +377,9 @@ pub fn simulate_driven(
                 },
                 e => e,
             })?;
-            stats.iterations += s.iterations;
-            stats.residual = stats.residual.max(s.residual);
-            stats.converged &= s.converged;
-            stats.contacts = stats.contacts.max(s.contacts);
-            stats.self_contacts = stats.self_contacts.max(s.self_contacts);
+            stats = Some(stats.map_or(s, |before| before.then(s)));
         }
+        let stats = stats.expect("a frame has at least one substep");
         guard.check(frame, &x, solver.system(), stats.residual)?;
         solver.system().scatter(&x, &mut all);
         cache.push(&all);
@@ -382,6 +399,88 @@ pub fn simulate_driven(
         measured_from: measure_from,
         seconds_measure,
     })
+}
+
+/// What a bake's steps move: the solver, what drives it, and the cloth's state.
+struct Stepping<'a, 'b> {
+    solver: &'a mut dyn StepSolver,
+    driven: Option<Driven<'b>>,
+    air: Option<&'a mut AirState>,
+    /// Model-ordered positions (the pins' entries are where the drive put them).
+    all: &'a mut Vec<DVec3>,
+    /// The moving body where the last step left it.
+    body_before: &'a mut Option<std::sync::Arc<collide::MeshCollider>>,
+    x: &'a mut Vec<DVec3>,
+    v: &'a mut Vec<DVec3>,
+}
+
+impl Stepping<'_, '_> {
+    /// Takes step `k` of `h` seconds (from k·h to (k + 1)·h): one step, or, where that step ends
+    /// above the tolerance or the solver fails it, two of half its length from the same start
+    /// (steps 2k and 2k + 1 of h/2), each split again as needed up to `splits` times over
+    /// ([`BakeParams::splits`]). A step that cannot be split further is kept as it ended
+    /// (flagged unconverged), or its error returned. (Times counted in steps: a split step's
+    /// halves end at the very times two substeps would.)
+    fn advance(&mut self, k: u64, h: f64, splits: usize) -> Result<StepStats> {
+        let saved = (splits > 0 && self.solver.save()).then(|| {
+            (
+                self.x.clone(),
+                self.v.clone(),
+                self.all.clone(),
+                self.body_before.clone(),
+            )
+        });
+        let outcome = self.step(k, h);
+        let Some((x, v, all, body)) = saved else {
+            return outcome;
+        };
+        // The failed attempt's iterations count (they took their time).
+        let wasted = match outcome {
+            Ok(s) if s.converged => return Ok(s),
+            Ok(s) => s.iterations,
+            Err(Error::Diverged { .. } | Error::Factorisation(_)) => 0,
+            Err(e) => return Err(e),
+        };
+        *self.x = x;
+        *self.v = v;
+        *self.all = all;
+        *self.body_before = body;
+        self.solver.restore();
+        self.solver.set_time_step(0.5 * h);
+        let halves = self.advance(2 * k, 0.5 * h, splits - 1).and_then(|first| {
+            let second = self.advance(2 * k + 1, 0.5 * h, splits - 1)?;
+            Ok(first.then(second))
+        });
+        self.solver.set_time_step(h);
+        halves.map(|s| StepStats {
+            iterations: s.iterations + wasted,
+            ..s
+        })
+    }
+
+    /// Step `k` of the solver, from k·h to (k + 1)·h seconds: the wind, then the pins and the
+    /// body moved to where they are at its end.
+    fn step(&mut self, k: u64, h: f64) -> Result<StepStats> {
+        if let Some(air) = self.air.as_deref_mut() {
+            air.apply(self.solver.system(), k as f64 * h, h, self.x, self.v);
+        }
+        if let Some(d) = self.driven {
+            let pose = d.drive.pose((k + 1) as f64 * h);
+            for (b, p) in d.drive.pins().iter().zip(&pose.pins) {
+                self.all[b.particle as usize] = *p;
+            }
+            let mut shapes = Vec::new();
+            if let (Some(j), Some(before)) = (d.body_shape, self.body_before.as_ref()) {
+                let moving = collide::Collider::moving(before.clone(), pose.body)?;
+                if let collide::Collider::Moving { after, .. } = &moving {
+                    *self.body_before = Some(after.clone());
+                }
+                shapes.push((j, moving));
+            }
+            self.solver.drive(self.all, shapes)?;
+        }
+        self.solver.step(self.x, self.v)
+    }
 }
 
 /// The per-frame measurement of a bake: the cloth, and its mesh colliders (the moving body in

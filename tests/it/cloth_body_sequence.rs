@@ -508,3 +508,62 @@ fn a_fast_box_lifts_a_fold_with_self_contact_every_step_converged_and_nothing_cr
         highest(layer(0))
     );
 }
+
+/// A step split in two (`--splits`) is taken again from its start: the contacts' state, the
+/// moving body and the pins are put back as they were, so a bake whose every step fails (one
+/// Newton iteration a step, against a tolerance no step reaches) and is split once makes
+/// exactly the bake of two substeps a frame, with self-contact on and the body moving within
+/// each step. The failed attempts' iterations are counted.
+#[test]
+fn a_split_step_is_the_two_half_steps_taken_from_its_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = 5;
+    let fast_top = |t: f64| RISE * (t * BODY_FPS / 2.0).clamp(0.0, 1.0);
+    for i in 0..frames {
+        let top = fast_top(i as f64 / BODY_FPS);
+        std::fs::write(dir.path().join(format!("box{i}.obj")), box_obj(top, false)).unwrap();
+    }
+    let bake = |name: &str, substeps: usize, splits: usize| {
+        let out = dir.path().join(format!("{name}.glb"));
+        let job = ClothJob {
+            input: Some(write_layers(
+                dir.path(),
+                "fold",
+                &[THICKNESS, 2.2 * THICKNESS],
+            )),
+            self_contact: scenebake::bake::cloth::Switch::On,
+            substeps,
+            splits,
+            max_newton: 3,
+            tolerance: 1e-14,
+            name: Some("fold".into()),
+            ..job(dir.path(), dir.path().join("box%d.obj"), &out)
+        };
+        let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
+        let (doc, buffers, _) = common::gltf_read::import(&out).unwrap();
+        let played = Played::read(&doc, &buffers, "fold");
+        let keys: Vec<Vec<DVec3>> = (0..=report.frames).map(|k| played.at_key(k)).collect();
+        (report, keys)
+    };
+    let (halves, halves_keys) = bake("halves", 2, 0);
+    let (split, split_keys) = bake("split", 1, 1);
+    assert_eq!(split.frames, 20);
+    assert_eq!(
+        split.residuals, halves.residuals,
+        "every frame's residual, exactly"
+    );
+    assert_eq!(split_keys, halves_keys, "every frame's positions");
+    assert!(
+        split.residuals.iter().all(|r| *r > 1e-14),
+        "no step converged"
+    );
+    assert_eq!(split.steps, vec![2; 20]);
+    assert_eq!(halves.steps, vec![2; 20]);
+    // Each frame: the failed whole step's iterations, then the halves'.
+    for (f, (s, h)) in split.iterations.iter().zip(&halves.iterations).enumerate() {
+        assert!(
+            *s > *h && *s <= *h + 3,
+            "frame {f}: {s} iterations split, {h} in halves"
+        );
+    }
+}

@@ -12,6 +12,7 @@ fn params(solver: SolverKind, damping: f64, gravity: DVec3) -> BakeParams {
         frames: 1,
         fps: 60.0,
         substeps: 1,
+        splits: 0,
         damping,
         gravity,
         solver,

@@ -98,6 +98,8 @@ pub mod defaults {
     pub const RESOLUTION: u32 = 10;
     /// Solver steps per frame.
     pub const SUBSTEPS: usize = 1;
+    /// Times over a step may be halved ([`crate::cloth::BakeParams::splits`]).
+    pub const SPLITS: usize = 3;
     /// Loops of a driving animation written.
     pub const CYCLES: usize = 1;
     /// Loops of a driving animation simulated and discarded before those written.
@@ -150,6 +152,11 @@ pub struct ClothJob {
     /// Solver steps per frame.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::SUBSTEPS, value_name = "S"))]
     pub substeps: usize,
+    /// Newton: a step that ends above the tolerance, or fails (a non-finite state, a Hessian
+    /// that no longer factors), is taken again from its start as two steps of half its length,
+    /// each split again as needed, up to N times over (down to 1/2ᴺ of the step); 0 never splits
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::SPLITS, value_name = "N"))]
+    pub splits: usize,
     /// Time integrator: newton (converged implicit Euler, the default) or fast (local/global).
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = defaults::SOLVER))]
     pub solver: SolverKind,
@@ -524,6 +531,7 @@ impl Default for ClothJob {
             frames: None,
             fps: None,
             substeps: defaults::SUBSTEPS,
+            splits: defaults::SPLITS,
             solver: defaults::SOLVER,
             tolerance: defaults::TOLERANCE,
             strain_limit: defaults::STRAIN_LIMIT,

@@ -368,6 +368,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         frames,
         fps,
         substeps: job.substeps,
+        splits: job.splits,
         damping,
         gravity,
         solver: job.solver,
@@ -1532,6 +1533,10 @@ fn report(
         frames: params.frames,
         fps: params.fps,
         substeps: params.substeps,
+        splits: match params.solver {
+            SolverKind::Fast => 0,
+            SolverKind::Newton => params.splits,
+        },
         solver: params.solver,
         time_step: params.time_step(),
         tolerance: params.tolerance,
@@ -1555,6 +1560,7 @@ fn report(
         gravity: params.gravity.to_array(),
         total_mass: model.mass.iter().sum(),
         iterations: frames.iter().map(|f| f.iterations).collect(),
+        steps: frames.iter().map(|f| f.steps).collect(),
         residuals: frames.iter().map(|f| f.residual).collect(),
         unconverged_frames: frames
             .iter()

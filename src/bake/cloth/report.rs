@@ -33,6 +33,8 @@ pub struct ClothReport {
     pub fps: f64,
     /// Steps per frame.
     pub substeps: usize,
+    /// How many times over a step that ends above the tolerance may be halved (`--splits`).
+    pub splits: usize,
     /// The solver.
     pub solver: SolverKind,
     /// Time step h, seconds.
@@ -63,6 +65,8 @@ pub struct ClothReport {
     pub total_mass: f64,
     /// Solver iterations per frame (summed over substeps).
     pub iterations: Vec<usize>,
+    /// Solver steps per frame: the substeps, and more where a step was split.
+    pub steps: Vec<usize>,
     /// Relative residual ρ = ‖∇g‖/‖M·g‖ at the end of each frame (worst substep).
     pub residuals: Vec<f64>,
     /// Frames with a step that ended above the tolerance.

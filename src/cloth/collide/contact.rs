@@ -298,6 +298,11 @@ impl NewtonContact {
         &self.colliders
     }
 
+    /// Takes steps of `h` seconds from the next on (friction's slip scale follows it).
+    pub fn set_time_step(&mut self, h: f64) {
+        self.slip_scale = STATIC_SLIP_SPEED * h;
+    }
+
     /// Remembers the start of the step (the friction's reference positions, and the side each
     /// particle comes from).
     ///

@@ -256,6 +256,8 @@ pub struct NewtonSolver {
     /// The collider that moves within each step as one of self-contact's obstacles
     /// ([`NewtonSolver::with_body_within_steps`]).
     body_within: Option<usize>,
+    /// The contacts as [`StepSolver::save`] kept them.
+    saved: Option<(Option<NewtonContact>, Option<SelfContact>)>,
 }
 
 impl NewtonSolver {
@@ -578,6 +580,25 @@ impl StepSolver for NewtonSolver {
         self.use_threads(threads);
     }
 
+    fn save(&mut self) -> bool {
+        self.saved = Some((self.contact.clone(), self.self_contact.clone()));
+        true
+    }
+
+    fn restore(&mut self) {
+        if let Some((contact, self_contact)) = self.saved.take() {
+            self.contact = contact;
+            self.self_contact = self_contact;
+        }
+    }
+
+    fn set_time_step(&mut self, h: f64) {
+        self.sys.params.time_step = h;
+        if let Some(c) = &mut self.contact {
+            c.set_time_step(h);
+        }
+    }
+
     fn drive(&mut self, pins: &[DVec3], shapes: Vec<(usize, Collider)>) -> Result<()> {
         self.sys.move_pins(pins);
         if let Some(s) = &mut self.self_contact {
@@ -780,6 +801,7 @@ impl StepSolver for NewtonSolver {
             converged,
             contacts,
             self_contacts,
+            steps: 1,
         })
     }
 }

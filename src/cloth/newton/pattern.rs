@@ -335,6 +335,7 @@ impl NewtonSolver {
             multigrid: multigrid.then(|| Multigrid::new(&col_ptr, &row_idx)),
             self_contact: None,
             body_within: None,
+            saved: None,
             row_idx32,
             values32: vec![0.0; single * row_idx.len()],
             l_values32: vec![0.0; single * len_val],

@@ -599,15 +599,19 @@ impl SelfContact {
             return (true, 1.0);
         }
         let mut t = 0.0;
+        let mut sep = self.separation(pair, p0);
         let mut dist = d0;
         for _ in 0..CCD_ROUNDS {
-            let dt = CCD_ADVANCE * (dist - target) / lp;
+            let p: [DVec3; 4] = std::array::from_fn(|k| p0[k] + d[k] * t);
+            let dt = CCD_ADVANCE
+                * ((dist - target) / lp).max(plane_advance(pair.edges, &p, &d, sep, target));
             if t + dt >= limit {
                 return (true, 1.0);
             }
             t += dt;
             let p: [DVec3; 4] = std::array::from_fn(|k| p0[k] + d[k] * t);
-            dist = self.separation(pair, p).distance();
+            sep = self.separation(pair, p);
+            dist = sep.distance();
             if dist - target <= 1e-3 * (d0 - target) {
                 break;
             }
@@ -738,6 +742,42 @@ impl SelfContact {
             }
         }
     }
+}
+
+/// How far along its path a pair certainly keeps `target` apart (its four vertices at `p`,
+/// moving by `d` over the whole path), by the plane through its closest points normal to their
+/// separation `sep`: every point of the first primitive less one of the second is a convex
+/// combination of the corner differences (the vertex less each triangle corner; each end of
+/// the one edge less each end of the other), so while every corner difference reaches at least
+/// `target` along the separation's direction, so does the distance. Each such reach is linear
+/// along the path. Zero when a corner is already below `target`.
+///
+/// Additive CCD's bound alone lets a pair sliding within micrometres of its target advance by
+/// its gap over its relative motion a round: a layer of cloth sliding over another, or over a
+/// body, then stops a path after a few per cent. Along the plane such a pair is cleared at once.
+fn plane_advance(edges: bool, p: &[DVec3; 4], d: &[DVec3; 4], sep: Separation, target: f64) -> f64 {
+    let len = sep.distance();
+    if len <= target {
+        return 0.0;
+    }
+    let n = sep.vector / len;
+    let corners: &[(usize, usize)] = if edges {
+        &[(0, 2), (0, 3), (1, 2), (1, 3)]
+    } else {
+        &[(0, 1), (0, 2), (0, 3)]
+    };
+    let mut advance = f64::INFINITY;
+    for &(i, j) in corners {
+        let reach = n.dot(p[i] - p[j]) - target;
+        if reach < 0.0 {
+            return 0.0;
+        }
+        let rate = n.dot(d[i] - d[j]);
+        if rate < 0.0 {
+            advance = advance.min(reach / -rate);
+        }
+    }
+    advance
 }
 
 #[cfg(test)]
@@ -871,5 +911,66 @@ mod tests {
         for v in body {
             assert_eq!(s.fixed[v].y, -0.5);
         }
+    }
+
+    /// The plane's advance never lets a pair come closer than its target: sampled densely along
+    /// the path, for point–triangle and edge–edge pairs of every shape and motion; and it clears
+    /// a point sliding a centimetre over a triangle a micrometre above its target in one go,
+    /// where additive CCD's bound allows a ten-thousandth of the path a round.
+    #[test]
+    fn the_planes_advance_is_conservative_and_clears_sliding_pairs() {
+        use super::plane_advance;
+        use crate::cloth::proximity::{point_triangle, segment_segment};
+        let mut seed = 0.5_f64;
+        let mut next = || {
+            seed = (seed * 9301.0 + 49297.0) % 233280.0;
+            seed / 233280.0 - 0.5
+        };
+        let mut cleared = 0;
+        for case in 0..4000 {
+            let edges = case % 2 == 1;
+            let p: [DVec3; 4] = std::array::from_fn(|_| DVec3::new(next(), next(), next()));
+            let d: [DVec3; 4] =
+                std::array::from_fn(|_| DVec3::new(next(), next(), next()) * (0.1 + next()));
+            let sep = |p: &[DVec3; 4]| {
+                if edges {
+                    segment_segment(p[0], p[1], p[2], p[3])
+                } else {
+                    point_triangle(p[0], p[1], p[2], p[3])
+                }
+            };
+            let s0 = sep(&p);
+            let target = 0.8 * s0.distance();
+            let t = plane_advance(edges, &p, &d, s0, target).min(1.0);
+            if t > 0.0 {
+                cleared += 1;
+            }
+            for k in 0..=1000 {
+                let tk = t * k as f64 / 1000.0;
+                let q: [DVec3; 4] = std::array::from_fn(|i| p[i] + d[i] * tk);
+                let dist = sep(&q).distance();
+                assert!(
+                    dist >= target * (1.0 - 1e-9),
+                    "case {case}: {dist} < {target} at {tk}"
+                );
+            }
+        }
+        assert!(
+            cleared > 400,
+            "the plane cleared only {cleared} of 4000 paths"
+        );
+
+        // A point 1 µm above its target over a tilted triangle, sliding 1 cm along it.
+        let n = DVec3::new(0.3, 1.0, -0.2).normalize();
+        let u = n.any_orthonormal_vector();
+        let v = n.cross(u);
+        let (a, b, c) = (DVec3::ZERO - 0.05 * (u + v), 0.05 * u, 0.05 * v);
+        let target = 1e-3;
+        let point = 0.01 * (u + v) + n * (target + 1e-6);
+        let p = [point, a, b, c];
+        let slide = 0.01 * (u - 0.5 * v);
+        let d = [slide, DVec3::ZERO, DVec3::ZERO, DVec3::ZERO];
+        let s0 = point_triangle(point, a, b, c);
+        assert!(plane_advance(false, &p, &d, s0, target) >= 1.0);
     }
 }
