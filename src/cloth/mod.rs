@@ -119,7 +119,8 @@ pub trait StepSolver {
     /// Keeps what the next step changes besides the particles' positions and velocities (the
     /// contacts' lagged forces and layers, where a moving body has got to), so that
     /// [`StepSolver::restore`] can take it again; false when the solver cannot (its steps are
-    /// then never split).
+    /// then never split). A saved step may end unconverged before its iteration cap where it
+    /// stops making progress: it is to be taken again in halves.
     fn save(&mut self) -> bool {
         false
     }

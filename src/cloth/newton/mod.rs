@@ -91,6 +91,16 @@ const ARMIJO: f64 = 1e-4;
 /// to three times there, 142; `docs/performance.md`, "A longer step, and a wider toe measured").
 const LONGER_STEP: f64 = 2.0;
 
+/// A step that may be split ([`StepSolver::save`]) ends unconverged once this many iterations
+/// have passed without halving the lowest residual it had reached, while that is still more
+/// than [`STALLED_FAR`] times the tolerance: it is then taken again as two half steps rather
+/// than run on to the cap. (Closer to the tolerance a step may wander for a hundred iterations
+/// and still converge: the skirts dropped on the table do.)
+const STALLED: usize = 30;
+
+/// See [`STALLED`].
+const STALLED_FAR: f64 = 10.0;
+
 /// Halvings before the line search gives up and takes the smallest step tried.
 const MAX_HALVINGS: usize = 30;
 
@@ -258,6 +268,9 @@ pub struct NewtonSolver {
     body_within: Option<usize>,
     /// The contacts as [`StepSolver::save`] kept them.
     saved: Option<(Option<NewtonContact>, Option<SelfContact>)>,
+    /// Whether the next step may end early where it stalls ([`STALLED`]): it was saved, to be
+    /// split if it fails.
+    may_stop_early: bool,
 }
 
 impl NewtonSolver {
@@ -582,6 +595,7 @@ impl StepSolver for NewtonSolver {
 
     fn save(&mut self) -> bool {
         self.saved = Some((self.contact.clone(), self.self_contact.clone()));
+        self.may_stop_early = true;
         true
     }
 
@@ -671,6 +685,16 @@ impl StepSolver for NewtonSolver {
         let mut iterations = 0;
         let mut swept_start = false;
         let mut pushed = false;
+        // (Not where a body moves within the step: there the pushes set the pace, and a box
+        // lifting a fold converges its first step whole, after a long stretch without halving
+        // its residual, but not as eighths.)
+        let may_stop_early = std::mem::take(&mut self.may_stop_early)
+            && !self
+                .self_contact
+                .as_ref()
+                .is_some_and(SelfContact::obstacles_moving);
+        // The lowest residual reached (halved at least), and when.
+        let (mut lowest, mut lowest_at) = (f64::INFINITY, 0);
         let (residual, converged) = loop {
             self.assemble(x);
             let held = self.hold(x);
@@ -689,6 +713,15 @@ impl StepSolver for NewtonSolver {
                 break (residual, true);
             }
             if iterations == self.max_iterations {
+                break (residual, false);
+            }
+            // While a body is still on its way, its progress is the step's.
+            if moving || residual <= 0.5 * lowest {
+                (lowest, lowest_at) = (residual, iterations);
+            } else if may_stop_early
+                && lowest > STALLED_FAR * self.tolerance
+                && iterations - lowest_at >= STALLED
+            {
                 break (residual, false);
             }
             if !swept_start && self.sweeping() {

@@ -336,6 +336,7 @@ impl NewtonSolver {
             self_contact: None,
             body_within: None,
             saved: None,
+            may_stop_early: false,
             row_idx32,
             values32: vec![0.0; single * row_idx.len()],
             l_values32: vec![0.0; single * len_val],
