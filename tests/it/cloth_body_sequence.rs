@@ -440,6 +440,16 @@ fn a_body_from_a_morph_animated_gltf_moves_as_its_sequence() {
     }
 }
 
+/// Writes `dir/box%d.obj`, 5 frames of a box whose top rises 0.2 m in two body frames (1 m/s:
+/// 2 cm, two thicknesses, per 50-fps step), then holds.
+fn write_fast_box(dir: &Path) {
+    let fast_top = |t: f64| RISE * (t * BODY_FPS / 2.0).clamp(0.0, 1.0);
+    for i in 0..5 {
+        let top = fast_top(i as f64 / BODY_FPS);
+        std::fs::write(dir.join(format!("box{i}.obj")), box_obj(top, false)).unwrap();
+    }
+}
+
 /// A body that moves a thickness or more in a step, under cloth lying on it in two layers with
 /// self-contact: the body moves within each step, pushing the layers up together, while a static
 /// mesh collider (a floor) stays put. Every step converges, and no frame has a crossing pair, of
@@ -447,14 +457,7 @@ fn a_body_from_a_morph_animated_gltf_moves_as_its_sequence() {
 #[test]
 fn a_fast_box_lifts_a_fold_with_self_contact_every_step_converged_and_nothing_crossing() {
     let dir = tempfile::tempdir().unwrap();
-    // The top rises 0.2 m in two body frames (1 m/s: 2 cm, two thicknesses, per 50-fps step),
-    // then holds.
-    let frames = 5;
-    let fast_top = |t: f64| RISE * (t * BODY_FPS / 2.0).clamp(0.0, 1.0);
-    for i in 0..frames {
-        let top = fast_top(i as f64 / BODY_FPS);
-        std::fs::write(dir.path().join(format!("box{i}.obj")), box_obj(top, false)).unwrap();
-    }
+    write_fast_box(dir.path());
     // A static mesh collider beside the moving body (a floor under the box): it stays put.
     let floor = dir.path().join("floor.obj");
     std::fs::write(
@@ -517,12 +520,7 @@ fn a_fast_box_lifts_a_fold_with_self_contact_every_step_converged_and_nothing_cr
 #[test]
 fn a_split_step_is_the_two_half_steps_taken_from_its_start() {
     let dir = tempfile::tempdir().unwrap();
-    let frames = 5;
-    let fast_top = |t: f64| RISE * (t * BODY_FPS / 2.0).clamp(0.0, 1.0);
-    for i in 0..frames {
-        let top = fast_top(i as f64 / BODY_FPS);
-        std::fs::write(dir.path().join(format!("box{i}.obj")), box_obj(top, false)).unwrap();
-    }
+    write_fast_box(dir.path());
     let bake = |name: &str, substeps: usize, splits: usize| {
         let out = dir.path().join(format!("{name}.glb"));
         let job = ClothJob {

@@ -152,9 +152,10 @@ pub struct ClothJob {
     /// Solver steps per frame.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::SUBSTEPS, value_name = "S"))]
     pub substeps: usize,
-    /// Newton: a step that ends above the tolerance, or fails (a non-finite state, a Hessian
-    /// that no longer factors), is taken again from its start as two steps of half its length,
-    /// each split again as needed, up to N times over (down to 1/2ᴺ of the step); 0 never splits
+    /// Newton: a step that ends above the tolerance, stalls far from it, or fails (a non-finite
+    /// state, a Hessian that no longer factors) is taken again from its start as two steps of
+    /// half its length, each split again as needed, up to N times over (down to 1/2ᴺ of the
+    /// step); 0 never splits
     #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::SPLITS, value_name = "N"))]
     pub splits: usize,
     /// Time integrator: newton (converged implicit Euler, the default) or fast (local/global).
