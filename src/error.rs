@@ -405,7 +405,7 @@ pub enum BasisProblem {
 /// How option `p` helps a diverging simulation, for [`Error::Diverged`]'s advice, named by `v`.
 fn advise(p: Param, v: Vocabulary<'_>) -> String {
     match p {
-        Param::Substeps => format!("more {}", v(p)),
+        Param::Substeps | Param::Splits => format!("more {}", v(p)),
         Param::Fps | Param::Iterations => format!("a higher {}", v(p)),
         _ => v(p),
     }

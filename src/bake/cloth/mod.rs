@@ -1037,16 +1037,17 @@ pub(crate) fn simulate_on_body(
     Ok((sim, body_triangles))
 }
 
-/// `e` with the options that could help a diverging `solver`: a shorter time step for both, more
-/// iterations for the local/global method (Newton stops on its residual, flagging a step it
-/// could not converge, rather than diverging for want of iterations).
+/// `e` with the options that could help a diverging `solver`: a shorter time step for both (for
+/// Newton also where its steps fail: more splits), more iterations for the local/global method
+/// (Newton stops on its residual, flagging a step it could not converge, rather than diverging
+/// for want of iterations).
 fn advised(e: Error, solver: SolverKind) -> Error {
     match e {
         Error::Diverged { frame, reason, .. } => Error::Diverged {
             frame,
             reason,
             advice: match solver {
-                SolverKind::Newton => vec![Param::Substeps, Param::Fps],
+                SolverKind::Newton => vec![Param::Substeps, Param::Splits, Param::Fps],
                 SolverKind::Fast => vec![Param::Substeps, Param::Fps, Param::Iterations],
             },
         },
