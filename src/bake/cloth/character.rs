@@ -234,8 +234,10 @@ pub fn bake_on_character(
         model,
         &cache,
         options,
-        Host::Character(host),
-        &usd_body,
+        Host::Character {
+            on: host,
+            bodies: &usd_body,
+        },
     )?;
     let seconds_export = export_start.elapsed().as_secs_f64();
     let quality = quality_report(&sim, job.strain_limit);

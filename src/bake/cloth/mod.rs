@@ -989,7 +989,7 @@ pub fn bake_cloth(job: &ClothJob, progress: &mut dyn FnMut(usize, usize)) -> Res
         static_meshes: collider_meshes(model, &params.colliders),
         start_time: 0.0,
     };
-    let exported = export(job, model, &sim.cache, options, Host::Alone(None), &[])?;
+    let exported = export(job, model, &sim.cache, options, Host::Alone(None))?;
     let seconds_export = export_start.elapsed().as_secs_f64();
     let quality = quality_report(&sim, job.strain_limit);
     Ok(report(
@@ -1405,31 +1405,40 @@ fn compress(
 
 /// The glTF document a bake's cache is written into.
 enum Host<'a> {
-    /// The cloth's own document, with the body it moved on beside it (a mesh sequence).
-    Alone(Option<AnimatedBody<'a>>),
-    /// A character's document with the garment added to it, or (`None`: `--garment-only`) the
-    /// garment alone, keyed on the character's animation.
-    Character(Option<Box<CharacterHost<'a>>>),
+    /// The cloth's own document, with the body it moved on beside it (a mesh sequence), which
+    /// the USD layer holds too.
+    Alone(Option<&'a AnimatedBody<'a>>),
+    /// A character's document with the garment added to it, or (`on` is `None`:
+    /// `--garment-only`) the garment alone, keyed on the character's animation; `bodies` are
+    /// its skinned meshes as the USD layer holds them.
+    Character {
+        on: Option<Box<CharacterHost<'a>>>,
+        bodies: &'a [AnimatedBody<'a>],
+    },
 }
 
 /// Writes a bake's every file through one pipeline, whatever its host: the glTF (a per-frame
 /// morph cache or a morph basis, `--max-targets` held), compressed as asked, then the VAT, the
-/// point caches and the USD layer (with `usd_bodies` beside the cloth), all in one atomic set.
+/// point caches and the USD layer (with the host's bodies beside the cloth), all in one atomic
+/// set.
 fn export(
     job: &ClothJob,
     model: &ClothModel,
     cache: &crate::cloth::FrameCache,
     options: MorphOptions,
     host: Host<'_>,
-    usd_bodies: &[AnimatedBody<'_>],
 ) -> Result<Exported> {
     check_cache(&job.output, &model.mesh, cache)?;
     let frames = RenderFrames::new(&model.mesh, cache);
     let (path, mesh) = (&job.output, &model.mesh);
+    let usd_bodies = match &host {
+        Host::Alone(body) => body.map_or(&[][..], std::slice::from_ref),
+        Host::Character { bodies, .. } => *bodies,
+    };
     let (morph, basis) = match (basis_options(job), host) {
         (Some(basis), host) => {
             let on = match host {
-                Host::Character(on) => on,
+                Host::Character { on, .. } => on,
                 Host::Alone(_) => None,
             };
             let e = encode_basis_on(path, mesh, &frames, &options, &basis, on.as_deref())
@@ -1437,11 +1446,13 @@ fn export(
             (e.morph, Some(e.basis))
         }
         (None, Host::Alone(body)) => (
-            encode_morph_gltf_with_body(path, mesh, &frames, &options, body)?,
+            encode_morph_gltf_with_body(path, mesh, &frames, &options, body.copied())?,
             None,
         ),
-        (None, Host::Character(None)) => (encode_morph_gltf(path, mesh, &frames, &options)?, None),
-        (None, Host::Character(Some(host))) => (
+        (None, Host::Character { on: None, .. }) => {
+            (encode_morph_gltf(path, mesh, &frames, &options)?, None)
+        }
+        (None, Host::Character { on: Some(host), .. }) => (
             encode_character_gltf(path, host.doc, mesh, &frames, &options, host.character)?,
             None,
         ),

@@ -212,14 +212,7 @@ pub fn bake_on_sequence(
         mesh: &sequence.mesh,
         frames: &body_frames,
     };
-    let exported = export(
-        job,
-        model,
-        &sim.cache,
-        options,
-        Host::Alone(Some(body)),
-        &[body],
-    )?;
+    let exported = export(job, model, &sim.cache, options, Host::Alone(Some(&body)))?;
     let seconds_export = export_start.elapsed().as_secs_f64();
     let quality = quality_report(&sim, job.strain_limit);
     let mut out = report(

@@ -599,17 +599,17 @@ impl SelfContact {
             return (true, 1.0);
         }
         let mut t = 0.0;
+        let mut p = p0;
         let mut sep = self.separation(pair, p0);
         let mut dist = d0;
         for _ in 0..CCD_ROUNDS {
-            let p: [DVec3; 4] = std::array::from_fn(|k| p0[k] + d[k] * t);
             let dt = CCD_ADVANCE
                 * ((dist - target) / lp).max(plane_advance(pair.edges, &p, &d, sep, target));
             if t + dt >= limit {
                 return (true, 1.0);
             }
             t += dt;
-            let p: [DVec3; 4] = std::array::from_fn(|k| p0[k] + d[k] * t);
+            p = std::array::from_fn(|k| p0[k] + d[k] * t);
             sep = self.separation(pair, p);
             dist = sep.distance();
             if dist - target <= 1e-3 * (d0 - target) {
