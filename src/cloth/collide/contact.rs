@@ -34,7 +34,7 @@ pub const STATIC_SLIP_SPEED: f64 = 1e-4;
 #[derive(Debug, Clone, Copy)]
 struct LaggedContact {
     particle: u32,
-    /// The collider (index into the shapes).
+    /// The surface (index into [`NewtonContact::surfaces`]).
     shape: u32,
     normal: DVec3,
     /// Normal force at the end of the previous step, N.
@@ -62,6 +62,11 @@ fn outer3(a: DVec3, b: DVec3) -> DMat3 {
 #[derive(Debug, Clone)]
 pub struct NewtonContact {
     colliders: Colliders,
+    /// The colliders as the surfaces particles are held off one by one ([`Collider::parts`]):
+    /// the indices `j` below and the lagged contacts' `shape` count these.
+    surfaces: Vec<Collider>,
+    /// Where each collider's surfaces start in `surfaces` (one more entry than colliders).
+    first: Vec<usize>,
     /// Friction slip scale ε, m.
     slip_scale: f64,
     lagged: Vec<LaggedContact>,
@@ -69,15 +74,19 @@ pub struct NewtonContact {
     /// n + 1.
     lagged_start: Vec<u32>,
     x0: Vec<DVec3>,
-    /// Per particle and collider (`i·shapes + j`): the distance it is kept at, m. The collision
+    /// Per particle and surface (`i·surfaces + j`): the distance it is kept at, m. The collision
     /// thickness, except for a particle that started closer to that collider (see
     /// [`rest_layer`]). Empty until the first step.
     layer: Vec<f64>,
-    /// Per particle and collider (`i·shapes + j`): how far the collider's surface near the
+    /// Per particle and surface (`i·surfaces + j`): how far the collider's surface near the
     /// particle moves during the step, m (see [`Collider::carry`]). Empty while every collider
     /// is static.
     carry: Vec<DVec3>,
-    /// Per particle and collider (`i·shapes + j`): a lower bound on the distance from where the
+    /// Per particle: how far the moving colliders carry it during the step, m: the sum over
+    /// the colliders of their nearest surface's `carry` (see [`NewtonContact::carry`]). Empty
+    /// while every collider is static.
+    carried: Vec<DVec3>,
+    /// Per particle and surface (`i·surfaces + j`): a lower bound on the distance from where the
     /// particle starts the step (as the collider sees it, [`NewtonContact::from`]) to a mesh
     /// collider's surface on the free side, m; zero for analytic shapes (which are cheap to ask)
     /// and for particles touching or behind a surface. See [`NewtonContact::out_of_reach`].
@@ -89,7 +98,7 @@ pub struct NewtonContact {
     /// barrier's queries look from: the segment from it to a trial point is the line search's
     /// path, so a trial that crossed a surface on the way is infeasible.
     iterate: Vec<DVec3>,
-    /// Per particle and collider (`i·shapes + j`), with the barrier: the distance the particle
+    /// Per particle and surface (`i·surfaces + j`), with the barrier: the distance the particle
     /// starts the step at where that is inside its band, else its layer (m): where
     /// [`NewtonContact::project`] puts a particle that went closer, so a particle resting on a
     /// collider starts the step where it rested. Empty with the constraint, and while a
@@ -127,14 +136,23 @@ impl NewtonContact {
             ContactModel::Constraint => Vec::new(),
             ContactModel::Barrier => sys.mass.iter().map(|m| barrier_strength(*m)).collect(),
         };
+        let mut first = vec![0];
+        let mut surfaces = Vec::new();
+        for shape in &colliders.shapes {
+            surfaces.extend(shape.parts());
+            first.push(surfaces.len());
+        }
         NewtonContact {
             colliders,
+            surfaces,
+            first,
             slip_scale: STATIC_SLIP_SPEED * sys.params.time_step,
             lagged: Vec::new(),
             lagged_start: vec![0; sys.len() + 1],
             x0: vec![DVec3::ZERO; sys.len()],
             layer: Vec::new(),
             carry: Vec::new(),
+            carried: Vec::new(),
             clear: Vec::new(),
             barrier,
             iterate: vec![DVec3::ZERO; sys.len()],
@@ -186,7 +204,7 @@ impl NewtonContact {
         mut f: impl FnMut(usize, &SurfacePoint, f64, f64) -> bool,
     ) -> bool {
         let at = self.iterate[i];
-        for (j, shape) in self.colliders.shapes.iter().enumerate() {
+        for (j, shape) in self.surfaces.iter().enumerate() {
             let start = self.from(i, j);
             let (lo, width) = barrier_band(self.layer(i, j));
             let top = lo + width + margin;
@@ -233,8 +251,8 @@ impl NewtonContact {
             if self.behind_any(i, *p, at) {
                 *p = at;
             }
-            for (j, shape) in self.colliders.shapes.iter().enumerate() {
-                let k = i * self.colliders.shapes.len() + j;
+            for (j, shape) in self.surfaces.iter().enumerate() {
+                let k = i * self.surfaces.len() + j;
                 let (lo, width) = barrier_band(self.layer(i, j));
                 let Some(s) = shape.contact(*p, at, self.reach(lo + width, *p, at)) else {
                     continue;
@@ -253,7 +271,7 @@ impl NewtonContact {
 
     /// True when particle `i` at `p`, looked at from `at`, is on or behind a collider's surface.
     fn behind_any(&self, i: usize, p: DVec3, at: DVec3) -> bool {
-        self.colliders.shapes.iter().enumerate().any(|(j, shape)| {
+        self.surfaces.iter().enumerate().any(|(j, shape)| {
             let (lo, width) = barrier_band(self.layer(i, j));
             shape
                 .contact(p, at, self.reach(lo + width, p, at))
@@ -279,6 +297,24 @@ impl NewtonContact {
     /// Replaces collider `j` (a body that moved: its pose at the end of the coming step, see
     /// [`Collider::Moving`]). Call before [`NewtonContact::begin_step`].
     pub fn set_shape(&mut self, j: usize, shape: Collider) {
+        let parts = shape.parts();
+        let slots = self.first[j]..self.first[j + 1];
+        if parts.len() == slots.len() {
+            for (slot, part) in self.surfaces[slots].iter_mut().zip(parts) {
+                *slot = part;
+            }
+        } else {
+            // Cut into other parts (not another pose of the same mesh): every per-surface
+            // record starts again.
+            let grown = parts.len() as isize - slots.len() as isize;
+            self.surfaces.splice(slots, parts);
+            for f in &mut self.first[j + 1..] {
+                *f = (*f as isize + grown) as usize;
+            }
+            self.layer.clear();
+            self.lagged.clear();
+            self.lagged_start.fill(0);
+        }
         self.colliders.shapes[j] = shape;
     }
 
@@ -287,7 +323,7 @@ impl NewtonContact {
     /// that moves is still on the free side).
     #[inline]
     fn from(&self, i: usize, j: usize) -> DVec3 {
-        match self.carry.get(i * self.colliders.shapes.len() + j) {
+        match self.carry.get(i * self.surfaces.len() + j) {
             Some(c) => self.x0[i] + *c,
             None => self.x0[i],
         }
@@ -311,19 +347,28 @@ impl NewtonContact {
     /// there: the distance it starts at ([`rest_layer`]).
     pub fn begin_step(&mut self, x0: &[DVec3]) {
         self.x0.copy_from_slice(x0);
-        let shapes = self.colliders.shapes.len();
-        if self.colliders.shapes.iter().any(Collider::is_moving) {
+        let shapes = self.surfaces.len();
+        self.carry.clear();
+        self.carried.clear();
+        if self.surfaces.iter().any(Collider::is_moving) {
             let reach = 2.0 * self.colliders.thickness;
-            self.carry.clear();
-            self.carry.extend(x0.iter().flat_map(|p| {
-                self.colliders
-                    .shapes
-                    .iter()
-                    .map(move |shape| shape.carry(*p, reach))
-            }));
+            for p in x0 {
+                // Each collider carries the particle as its nearest part does.
+                let mut carried = DVec3::ZERO;
+                for parts in self.first.windows(2) {
+                    let mut nearest: Option<(DVec3, f64)> = None;
+                    for shape in &self.surfaces[parts[0]..parts[1]] {
+                        let c = shape.carry(*p, reach);
+                        self.carry.push(c.map_or(DVec3::ZERO, |c| c.0));
+                        if let Some(c) = c.filter(|c| nearest.is_none_or(|n| c.1 < n.1)) {
+                            nearest = Some(c);
+                        }
+                    }
+                    carried += nearest.map_or(DVec3::ZERO, |n| n.0);
+                }
+                self.carried.push(carried);
+            }
             debug_assert_eq!(self.carry.len(), x0.len() * shapes);
-        } else {
-            self.carry.clear();
         }
         // The barrier looks from where each particle starts as the colliders see it: carried
         // along with a moving body's surface.
@@ -335,8 +380,7 @@ impl NewtonContact {
             self.layer = x0
                 .iter()
                 .flat_map(|p| {
-                    self.colliders
-                        .shapes
+                    self.surfaces
                         .iter()
                         .map(move |shape| rest_layer(t, shape.contact(*p, *p, t)))
                 })
@@ -359,7 +403,7 @@ impl NewtonContact {
         clear.clear();
         seat.clear();
         for i in 0..x0.len() {
-            for (j, shape) in self.colliders.shapes.iter().enumerate() {
+            for (j, shape) in self.surfaces.iter().enumerate() {
                 let mesh = matches!(shape, Collider::Mesh(_) | Collider::Moving { .. });
                 let layer = self.layer(i, j);
                 let (lo, width) = barrier_band(layer);
@@ -396,7 +440,7 @@ impl NewtonContact {
     fn out_of_reach(&self, i: usize, j: usize, layer: f64, p: DVec3, from: DVec3) -> bool {
         let clear = self
             .clear
-            .get(i * self.colliders.shapes.len() + j)
+            .get(i * self.surfaces.len() + j)
             .copied()
             .unwrap_or(0.0);
         let needed = layer.max(self.colliders.thickness) + 2.0 * p.distance(from);
@@ -407,7 +451,7 @@ impl NewtonContact {
     #[inline]
     fn layer(&self, i: usize, j: usize) -> f64 {
         self.layer
-            .get(i * self.colliders.shapes.len() + j)
+            .get(i * self.surfaces.len() + j)
             .copied()
             .unwrap_or(self.colliders.thickness)
     }
@@ -419,8 +463,8 @@ impl NewtonContact {
     pub fn project(&self, i: usize, p: &mut DVec3) -> Option<SurfacePoint> {
         let mut moved = false;
         let mut resting = None;
-        let shapes = self.colliders.shapes.len();
-        for (j, shape) in self.colliders.shapes.iter().enumerate() {
+        let shapes = self.surfaces.len();
+        for (j, shape) in self.surfaces.iter().enumerate() {
             let x0 = self.from(i, j);
             let layer = match self.seat.get(i * shapes + j) {
                 Some(seat) => *seat,
@@ -458,10 +502,7 @@ impl NewtonContact {
     /// when none is near or every collider is static).
     #[inline]
     pub fn carry(&self, i: usize) -> DVec3 {
-        let shapes = self.colliders.shapes.len();
-        self.carry
-            .get(i * shapes..(i + 1) * shapes)
-            .map_or(DVec3::ZERO, |c| c.iter().copied().sum())
+        self.carried.get(i).copied().unwrap_or(DVec3::ZERO)
     }
 
     /// True when a collider moves (its surface carries the particles near it).
@@ -472,21 +513,17 @@ impl NewtonContact {
     /// As [`NewtonContact::resting`], with the collider's index.
     #[inline]
     fn resting_on(&self, i: usize, p: DVec3) -> Option<(usize, SurfacePoint)> {
-        self.colliders
-            .shapes
-            .iter()
-            .enumerate()
-            .find_map(|(j, shape)| {
-                let x0 = self.from(i, j);
-                let touch = self.touch(self.layer(i, j));
-                if self.out_of_reach(i, j, touch, p, x0) {
-                    return None;
-                }
-                shape
-                    .contact(p, x0, self.reach(touch, p, x0))
-                    .filter(|s| s.distance <= touch)
-                    .map(|s| (j, s))
-            })
+        self.surfaces.iter().enumerate().find_map(|(j, shape)| {
+            let x0 = self.from(i, j);
+            let touch = self.touch(self.layer(i, j));
+            if self.out_of_reach(i, j, touch, p, x0) {
+                return None;
+            }
+            shape
+                .contact(p, x0, self.reach(touch, p, x0))
+                .filter(|s| s.distance <= touch)
+                .map(|s| (j, s))
+        })
     }
 
     /// Moves particle `i` at `p`, held on a collider, back down onto its layer when it is above
@@ -494,23 +531,18 @@ impl NewtonContact {
     /// plane lifts off it by the square of its slide over twice the radius.
     #[inline]
     pub fn settle(&self, i: usize, p: &mut DVec3, reach: f64) {
-        let above = self
-            .colliders
-            .shapes
-            .iter()
-            .enumerate()
-            .find_map(|(j, shape)| {
-                let x0 = self.from(i, j);
-                let layer = self.layer(i, j);
-                let touch = self.touch(layer);
-                if self.out_of_reach(i, j, touch + reach, *p, x0) {
-                    return None;
-                }
-                shape
-                    .contact(*p, x0, self.reach(touch + reach, *p, x0))
-                    .filter(|s| s.distance <= touch + reach)
-                    .map(|s| (s, layer))
-            });
+        let above = self.surfaces.iter().enumerate().find_map(|(j, shape)| {
+            let x0 = self.from(i, j);
+            let layer = self.layer(i, j);
+            let touch = self.touch(layer);
+            if self.out_of_reach(i, j, touch + reach, *p, x0) {
+                return None;
+            }
+            shape
+                .contact(*p, x0, self.reach(touch + reach, *p, x0))
+                .filter(|s| s.distance <= touch + reach)
+                .map(|s| (s, layer))
+        });
         if let Some((s, layer)) = above.filter(|(s, layer)| s.distance > *layer) {
             *p -= s.normal * (s.distance - layer);
         }
@@ -721,7 +753,7 @@ impl NewtonContact {
             }
         }
         let t = self.colliders.thickness;
-        let shapes = self.colliders.shapes.len();
+        let shapes = self.surfaces.len();
         // A layer grows to what the particle's distance is the top of: the layer itself with
         // the constraint; with the barrier the layer whose band ends there (a particle resting
         // inside its band, above its layer where it carries less than ten weights, is not
@@ -737,7 +769,7 @@ impl NewtonContact {
                 let (i, j) = (k / shapes, k % shapes);
                 let from = self.from(i, j);
                 let reach = top * t + x[i].distance(from);
-                let distance = self.colliders.shapes[j]
+                let distance = self.surfaces[j]
                     .contact(x[i], from, reach)
                     .map_or(top * t, |s| s.distance);
                 self.layer[k] = self.layer[k].max(distance / top).min(t);
@@ -879,6 +911,119 @@ mod tests {
     }
 
     /// The lab cloth's n×n grid, nothing pinned, every particle `mass` kg, at a garment's step.
+    /// One mesh of the given boxes (each a closed piece, welded by position only) and, with
+    /// `sheet`, an open square far from them.
+    fn pieces(boxes: &[(DVec3, DVec3)], sheet: bool) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        let (mut v, mut t) = (Vec::new(), Vec::new());
+        let mut add = |m: StaticMesh| {
+            let base = v.len() as u32;
+            v.extend(m.positions.iter().map(|p| p.as_dvec3()));
+            t.extend(
+                m.indices
+                    .chunks_exact(3)
+                    .map(|c| [c[0], c[1], c[2]].map(|i| i + base)),
+            );
+        };
+        for (lo, hi) in boxes {
+            add(StaticMesh::cuboid(*lo, *hi, "piece"));
+        }
+        if sheet {
+            add(StaticMesh::plane(DVec3::Y, -3.0, DVec3::ZERO, 1.0, "sheet"));
+        }
+        (v, t)
+    }
+
+    /// A hip box with a leg box reaching into it from below, and a loose open sheet: as one
+    /// mesh neither closed nor one piece.
+    fn hips_and_leg() -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        pieces(
+            &[
+                (DVec3::new(-0.2, -0.1, -0.1), DVec3::new(0.2, 0.1, 0.1)),
+                (DVec3::new(0.0, -0.6, -0.05), DVec3::new(0.1, 0.0, 0.05)),
+            ],
+            true,
+        )
+    }
+
+    /// A body built of closed pieces that overlap (a leg reaching into the hips) is cut into
+    /// solids: a particle inside the leg below the hips, which the body as one open mesh (a
+    /// two-sided shell) would hold inside, is pushed out of the leg at the step's start, to
+    /// the side the leg's nearest face is on.
+    #[test]
+    fn a_particle_inside_one_piece_of_a_body_is_pushed_out_of_it() {
+        let (v, t) = hips_and_leg();
+        let body = MeshCollider::new(v, t).unwrap();
+        assert!(!body.is_closed());
+        let closed: Vec<bool> = body.parts().iter().map(|p| p.is_closed()).collect();
+        assert_eq!(closed, [true, true, false], "hips, leg, and the sheet");
+        // 1 cm inside the leg's +x face, below the hips.
+        let inside = DVec3::new(0.09, -0.3, 0.0);
+        let leg = body.parts()[1].contact(inside, inside, 0.05).unwrap();
+        assert!((leg.distance + 0.01).abs() < 1e-6, "{leg:?}");
+        assert!(leg.normal.abs_diff_eq(DVec3::X, 1e-9));
+        assert!(body.contact(inside, inside, 0.05).unwrap().distance > 0.0);
+
+        let sys = lab_system(3, 2e-4);
+        let thickness = 0.004;
+        let colliders = Colliders {
+            shapes: vec![Collider::Mesh(Arc::new(body))],
+            thickness,
+            friction: 0.0,
+            model: ContactModel::Barrier,
+        };
+        let mut contact = NewtonContact::new(colliders, &sys);
+        let far = |i: usize| DVec3::new(1.0 + 0.05 * i as f64, 5.0, 0.0);
+        let mut x: Vec<DVec3> = (0..sys.len()).map(far).collect();
+        x[0] = inside;
+        contact.begin_step(&x);
+        assert_eq!(contact.make_feasible(&mut x), 0);
+        // Outside the leg's +x face (x = 0.1), beyond the bottom of the barrier band of the
+        // thinnest layer (a particle that starts behind a surface is moved out to a tenth of
+        // the thickness).
+        let (lo, _) = barrier_band(MIN_BARRIER_LAYER * thickness);
+        assert!(x[0].x > 0.1 + lo, "still in the leg at {}", x[0]);
+        assert!(contact.energy(&x).is_finite());
+    }
+
+    /// Each collider carries a particle as its nearest part moves: a particle resting on a still
+    /// piece of a body is not dragged along by another piece that swings past nearby.
+    #[test]
+    fn a_particle_is_carried_by_the_part_it_rests_on() {
+        let still = (DVec3::new(-0.1, -0.1, -0.1), DVec3::new(0.1, 0.1, 0.1));
+        let (before, t) = pieces(
+            &[
+                still,
+                (DVec3::new(0.15, -0.1, -0.1), DVec3::new(0.25, 0.1, 0.1)),
+            ],
+            false,
+        );
+        // The second box moves 6 cm along z in the step; the first stays.
+        let after: Vec<DVec3> = before
+            .iter()
+            .map(|p| if p.x > 0.12 { *p + DVec3::Z * 0.06 } else { *p })
+            .collect();
+        let before = Arc::new(MeshCollider::new(before, t).unwrap());
+        assert_eq!(before.parts().len(), 2);
+        let body = Collider::moving(before, after).unwrap();
+        let sys = lab_system(3, 2e-4);
+        let colliders = Colliders {
+            shapes: vec![body],
+            thickness: 0.004,
+            friction: 0.0,
+            model: ContactModel::Barrier,
+        };
+        let mut contact = NewtonContact::new(colliders, &sys);
+        let far = |i: usize| DVec3::new(1.0 + 0.05 * i as f64, 5.0, 0.0);
+        let mut x: Vec<DVec3> = (0..sys.len()).map(far).collect();
+        // Resting 3 mm off the still box's +x face, 4.7 cm from the moving one.
+        x[0] = DVec3::new(0.103, 0.0, 0.0);
+        // And one resting on the moving box's +x face.
+        x[1] = DVec3::new(0.253, 0.0, 0.0);
+        contact.begin_step(&x);
+        assert_eq!(contact.carry(0), DVec3::ZERO);
+        assert!(contact.carry(1).abs_diff_eq(DVec3::Z * 0.06, 1e-9));
+    }
+
     fn lab_system(n: u32, mass: f64) -> ReducedSystem {
         lab_cloth(n, 100.0)
             .system(mass, false, StepParams::garment())

@@ -14,6 +14,7 @@
 
 use std::collections::HashMap;
 use std::path::Path;
+use std::sync::Arc;
 
 use glam::DVec3;
 
@@ -64,6 +65,19 @@ pub struct MeshCollider {
     vertex_normals: Vec<DVec3>,
     /// Below this distance (m) the direction p − c is noise: the surface normal is used.
     tiny: f64,
+    /// The mesh's parts as colliders of their own ([`MeshCollider::parts`]); empty when the mesh
+    /// is one part.
+    parts: Vec<Arc<MeshCollider>>,
+    /// Which vertices and triangles make each part, kept for the mesh's other poses
+    /// ([`MeshCollider::posed`]).
+    partition: Option<Arc<Partition>>,
+}
+
+/// A mesh cut into parts ([`MeshCollider::parts`]): per part, the mesh's vertices it uses and
+/// its triangles indexing those.
+#[derive(Debug)]
+struct Partition {
+    parts: Vec<(Vec<u32>, Vec<[u32; 3]>)>,
 }
 
 impl std::fmt::Debug for MeshCollider {
@@ -121,6 +135,35 @@ impl MeshCollider {
     /// [`Error::ColliderMesh`] (without a path) for a non-finite position, an index out of range,
     /// or when no triangle of non-zero area is left.
     pub fn new(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Result<Self> {
+        Self::build(positions, triangles, Split::Find)
+    }
+
+    /// The same mesh with its vertices at `positions` (another pose: same count and order), cut
+    /// into the same parts.
+    ///
+    /// # Errors
+    /// As [`MeshCollider::new`], for the whole mesh or a part.
+    pub fn posed(&self, positions: Vec<DVec3>) -> Result<Self> {
+        let split = match &self.partition {
+            Some(p) => Split::As(Arc::clone(p)),
+            None => Split::Whole,
+        };
+        Self::build(positions, self.triangles.clone(), split)
+    }
+
+    /// The mesh's parts, each a collider of its own, when it is made of several connected
+    /// pieces (welded positions joined) of which at least one is closed: every closed piece is a
+    /// part (a solid), and the open pieces together one more (a shell). Empty otherwise.
+    ///
+    /// A character is often built of closed pieces that overlap (a leg's top inside the hips):
+    /// as one mesh it is not closed, so it would be a two-sided shell, and a particle pushed
+    /// into a leg would stay inside it. Part by part, each piece is a solid, and a particle
+    /// near where two pieces meet is held off both.
+    pub fn parts(&self) -> &[Arc<MeshCollider>] {
+        &self.parts
+    }
+
+    fn build(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>, split: Split) -> Result<Self> {
         let refuse = |problem| Error::ColliderMesh {
             path: None,
             problem,
@@ -170,6 +213,22 @@ impl MeshCollider {
         let (closed, edge_normals, vertex_normals) = topology(&positions, &triangles, &weld);
         let (lo, hi) = (nodes[0].lo, nodes[0].hi);
         let tiny = 1e-12 * (1.0 + (hi - lo).length() + lo.abs().max(hi.abs()).max_element());
+        let partition = match split {
+            Split::Find => partition(&positions, &triangles, &weld).map(Arc::new),
+            Split::As(p) => Some(p),
+            _ => None,
+        };
+        let parts = match &partition {
+            Some(p) => p
+                .parts
+                .iter()
+                .map(|(vertices, triangles)| {
+                    let positions = vertices.iter().map(|&v| positions[v as usize]).collect();
+                    Self::build(positions, triangles.clone(), Split::Whole).map(Arc::new)
+                })
+                .collect::<Result<_>>()?,
+            None => Vec::new(),
+        };
         Ok(MeshCollider {
             positions,
             triangles,
@@ -179,6 +238,8 @@ impl MeshCollider {
             edge_normals,
             vertex_normals,
             tiny,
+            parts,
+            partition,
         })
     }
 
@@ -579,6 +640,100 @@ fn weld(positions: &[DVec3]) -> Vec<u32> {
         }
     }
     weld
+}
+
+/// Whether [`MeshCollider::build`] looks for parts.
+enum Split {
+    /// Cut the mesh into its parts where it has several ([`MeshCollider::parts`]).
+    Find,
+    /// Cut it as another pose of the same mesh was cut.
+    As(Arc<Partition>),
+    /// Keep it whole.
+    Whole,
+}
+
+/// The parts of a mesh that is not closed as a whole ([`MeshCollider::parts`]): its connected
+/// pieces (triangles sharing a welded position), each closed one a part and the open ones
+/// together another; `None` when there is one piece or no closed one.
+fn partition(positions: &[DVec3], triangles: &[[u32; 3]], weld: &[u32]) -> Option<Partition> {
+    // Union–find over welded positions.
+    fn root(parent: &mut [u32], mut i: u32) -> u32 {
+        while parent[i as usize] != i {
+            let up = parent[parent[i as usize] as usize];
+            parent[i as usize] = up;
+            i = up;
+        }
+        i
+    }
+    let mut parent: Vec<u32> = (0..positions.len() as u32).collect();
+    for t in triangles {
+        let a = root(&mut parent, weld[t[0] as usize]);
+        for &v in &t[1..] {
+            let b = root(&mut parent, weld[v as usize]);
+            parent[b as usize] = a;
+        }
+    }
+    // Pieces in the order of their first triangle.
+    let mut piece_of_root: HashMap<u32, usize> = HashMap::new();
+    let mut pieces: Vec<Vec<[u32; 3]>> = Vec::new();
+    for t in triangles {
+        let r = root(&mut parent, weld[t[0] as usize]);
+        let k = *piece_of_root.entry(r).or_insert_with(|| {
+            pieces.push(Vec::new());
+            pieces.len() - 1
+        });
+        pieces[k].push(*t);
+    }
+    if pieces.len() < 2 {
+        return None;
+    }
+    // A piece is closed when each of its directed edges occurs once and its reverse once (a
+    // twin is always in the same piece).
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * triangles.len());
+    let edges = |t: &[u32; 3]| {
+        let t = *t;
+        (0..3).map(move |e| (weld[t[e] as usize], weld[t[(e + 1) % 3] as usize]))
+    };
+    for t in triangles {
+        for key in edges(t) {
+            *directed.entry(key).or_insert(0) += 1;
+        }
+    }
+    let closed_piece = |piece: &Vec<[u32; 3]>| {
+        piece.iter().flat_map(edges).all(|(a, b)| {
+            a != b && directed.get(&(a, b)) == Some(&1) && directed.get(&(b, a)) == Some(&1)
+        })
+    };
+    let (closed, open): (Vec<_>, Vec<_>) = pieces.into_iter().partition(closed_piece);
+    if closed.is_empty() {
+        return None;
+    }
+    let mut groups = closed;
+    let open: Vec<[u32; 3]> = open.into_iter().flatten().collect();
+    if !open.is_empty() {
+        groups.push(open);
+    }
+    // Each part indexes its own vertices.
+    let parts = groups
+        .into_iter()
+        .map(|tris| {
+            let mut local: HashMap<u32, u32> = HashMap::new();
+            let mut vertices = Vec::new();
+            let tris = tris
+                .iter()
+                .map(|t| {
+                    t.map(|v| {
+                        *local.entry(v).or_insert_with(|| {
+                            vertices.push(v);
+                            vertices.len() as u32 - 1
+                        })
+                    })
+                })
+                .collect();
+            (vertices, tris)
+        })
+        .collect();
+    Some(Partition { parts })
 }
 
 /// Whether the surface is closed and consistently oriented, with the edge and vertex

@@ -109,6 +109,16 @@ impl FromStr for ColliderSpec {
     }
 }
 
+/// How far the vertex that moves farthest from `before` to `after` moves, m.
+fn farthest(before: &[DVec3], after: &[DVec3]) -> f64 {
+    before
+        .iter()
+        .zip(after)
+        .map(|(a, b)| a.distance_squared(*b))
+        .fold(0.0, f64::max)
+        .sqrt()
+}
+
 /// A collider ready for queries.
 #[derive(Debug, Clone)]
 pub enum Collider {
@@ -199,19 +209,38 @@ impl Collider {
     /// # Errors
     /// As [`MeshCollider::new`] for the end pose.
     pub fn moving(before: Arc<MeshCollider>, after: Vec<DVec3>) -> Result<Self> {
-        let motion = before
-            .positions()
-            .iter()
-            .zip(&after)
-            .map(|(a, b)| a.distance_squared(*b))
-            .fold(0.0, f64::max)
-            .sqrt();
-        let after = Arc::new(MeshCollider::new(after, before.triangles().to_vec())?);
+        let motion = farthest(before.positions(), &after);
+        let after = Arc::new(before.posed(after)?);
         Ok(Collider::Moving {
             before,
             after,
             motion,
         })
+    }
+
+    /// The collider as the surfaces Newton's contact holds particles off one by one: a mesh's
+    /// parts ([`MeshCollider::parts`]), each moving as the whole does, or the collider itself.
+    pub fn parts(&self) -> Vec<Collider> {
+        match self {
+            Collider::Mesh(m) if !m.parts().is_empty() => {
+                m.parts().iter().cloned().map(Collider::Mesh).collect()
+            }
+            Collider::Moving {
+                before,
+                after,
+                motion,
+            } if !after.parts().is_empty() && before.parts().len() == after.parts().len() => before
+                .parts()
+                .iter()
+                .zip(after.parts())
+                .map(|(before, after)| Collider::Moving {
+                    motion: farthest(before.positions(), after.positions()),
+                    before: Arc::clone(before),
+                    after: Arc::clone(after),
+                })
+                .collect(),
+            _ => vec![self.clone()],
+        }
     }
 
     /// True for a collider that moves ([`Collider::Moving`]).
@@ -220,24 +249,25 @@ impl Collider {
     }
 
     /// How far the surface point nearest to `p` (within `reach` plus the surface's own motion,
-    /// m) moves during the step, m; zero for static colliders and for points out of reach.
-    pub fn carry(&self, p: DVec3, reach: f64) -> DVec3 {
+    /// m) moves during the step, m, and how far that point is from `p` at the step's start, m;
+    /// `None` for static colliders and for points out of reach.
+    pub fn carry(&self, p: DVec3, reach: f64) -> Option<(DVec3, f64)> {
         let Collider::Moving {
             before,
             after,
             motion,
         } = self
         else {
-            return DVec3::ZERO;
+            return None;
         };
-        match before.closest(p, reach + motion) {
-            Some((corners, bary)) => corners
-                .iter()
-                .zip(bary.to_array())
-                .map(|(&v, w)| (after.positions()[v as usize] - before.positions()[v as usize]) * w)
-                .sum(),
-            None => DVec3::ZERO,
+        let (corners, bary) = before.closest(p, reach + motion)?;
+        let (mut moved, mut at) = (DVec3::ZERO, DVec3::ZERO);
+        for (&v, w) in corners.iter().zip(bary.to_array()) {
+            let from = before.positions()[v as usize];
+            moved += (after.positions()[v as usize] - from) * w;
+            at += from * w;
         }
+        Some((moved, p.distance(at)))
     }
 
     /// The collider as a static mesh for the exported scene, named `name`. A plane becomes a
