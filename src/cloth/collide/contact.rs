@@ -86,6 +86,16 @@ pub struct NewtonContact {
     /// the colliders of their nearest surface's `carry` (see [`NewtonContact::carry`]). Empty
     /// while every collider is static.
     carried: Vec<DVec3>,
+    /// Per particle (from `near_start[i]` to `near_start[i + 1]`): the surfaces within
+    /// `CLEAR_REACH` thicknesses of where it starts the step (see
+    /// [`NewtonContact::candidates`]).
+    near: Vec<u32>,
+    near_start: Vec<u32>,
+    /// Per particle: the least of `clear − 2·|carry|` over the other surfaces (infinite when
+    /// there are none), m.
+    far_clear: Vec<f64>,
+    /// Every surface's index.
+    every: Vec<u32>,
     /// Per particle and surface (`i·surfaces + j`): a lower bound on the distance from where the
     /// particle starts the step (as the collider sees it, [`NewtonContact::from`]) to a mesh
     /// collider's surface on the free side, m; zero for analytic shapes (which are cheap to ask)
@@ -142,6 +152,7 @@ impl NewtonContact {
             surfaces.extend(shape.parts());
             first.push(surfaces.len());
         }
+        let every = (0..surfaces.len() as u32).collect();
         NewtonContact {
             colliders,
             surfaces,
@@ -153,6 +164,10 @@ impl NewtonContact {
             layer: Vec::new(),
             carry: Vec::new(),
             carried: Vec::new(),
+            near: Vec::new(),
+            near_start: Vec::new(),
+            far_clear: Vec::new(),
+            every,
             clear: Vec::new(),
             barrier,
             iterate: vec![DVec3::ZERO; sys.len()],
@@ -204,7 +219,11 @@ impl NewtonContact {
         mut f: impl FnMut(usize, &SurfacePoint, f64, f64) -> bool,
     ) -> bool {
         let at = self.iterate[i];
-        for (j, shape) in self.surfaces.iter().enumerate() {
+        let x0 = self.x0[i];
+        let moved = p.distance(x0).max(at.distance(x0));
+        let (lo, width) = barrier_band(self.colliders.thickness);
+        for &j in self.candidates(i, lo + width + margin, moved) {
+            let (j, shape) = (j as usize, &self.surfaces[j as usize]);
             let start = self.from(i, j);
             let (lo, width) = barrier_band(self.layer(i, j));
             let top = lo + width + margin;
@@ -311,6 +330,8 @@ impl NewtonContact {
             for f in &mut self.first[j + 1..] {
                 *f = (*f as isize + grown) as usize;
             }
+            self.every = (0..self.surfaces.len() as u32).collect();
+            self.far_clear.clear();
             self.layer.clear();
             self.lagged.clear();
             self.lagged_start.fill(0);
@@ -426,8 +447,43 @@ impl NewtonContact {
                 }
             }
         }
+        // The surfaces nothing of was within reach of a particle's start are out of its reach
+        // while it moves less than about half of that (less their own motion), as
+        // `out_of_reach` finds them one by one: the others are listed.
+        self.near.clear();
+        self.near_start.clear();
+        self.near_start.push(0);
+        self.far_clear.clear();
+        for (i, clear) in clear.chunks_exact(shapes.max(1)).enumerate() {
+            let mut far_clear = f64::INFINITY;
+            for (j, &c) in clear.iter().enumerate() {
+                if c >= reach {
+                    let carry = self.carry.get(i * shapes + j).map_or(0.0, |c| c.length());
+                    far_clear = far_clear.min(c - 2.0 * carry * (1.0 + 1e-9));
+                } else {
+                    self.near.push(j as u32);
+                }
+            }
+            self.near_start.push(self.near.len() as u32);
+            self.far_clear.push(far_clear);
+        }
         self.clear = clear;
         self.seat = seat;
+    }
+
+    /// The surfaces a query of particle `i` that moved at most `moved` (m) from where it started
+    /// the step, looking `layer` (m) around it, may find ([`NewtonContact::out_of_reach`] would
+    /// skip every other): the surfaces near it at the start, or all of them when it moved far
+    /// enough for the others to come within reach.
+    #[inline]
+    fn candidates(&self, i: usize, layer: f64, moved: f64) -> &[u32] {
+        let needed = layer.max(self.colliders.thickness) + 2.0 * moved;
+        match self.far_clear.get(i) {
+            Some(&far) if far > needed * (1.0 + 1e-9) + 1e-9 => {
+                &self.near[self.near_start[i] as usize..self.near_start[i + 1] as usize]
+            }
+            _ => &self.every,
+        }
     }
 
     /// True when a query of collider `j` for particle `i` at `p`, from `from` (where it starts
