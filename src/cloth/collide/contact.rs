@@ -186,10 +186,10 @@ impl NewtonContact {
         !self.barrier.is_empty()
     }
 
-    /// Calls `f(j, surface, u, width)` for every collider j whose barrier band particle `i` at
-    /// `p` is inside, u ∈ (0, 1) its depth into the band (see [`barrier_shape`]) and `width` the
-    /// band's (m); returns false, having stopped, when `p` is at or below a band's bottom
-    /// (infeasible).
+    /// Calls `f(j, surface, u, width)` for every barrier term of particle `i` at `p` (see
+    /// [`NewtonContact::band_surfaces`]), u ∈ (0, 1) its depth into surface j's band (see
+    /// [`barrier_shape`]) and `width` the band's (m); returns false, having stopped, when `p`
+    /// is at or below a band's bottom (infeasible).
     #[inline]
     fn barrier_contacts(
         &self,
@@ -207,9 +207,12 @@ impl NewtonContact {
         })
     }
 
-    /// Calls `f(j, surface, lo, width)` for every collider j whose surface is closer to particle
-    /// `i` at `p` than its barrier band's top plus `margin` (m), with the band's bottom `lo` and
-    /// `width` (m); stops and returns false as soon as `f` does.
+    /// Calls `f(j, surface, lo, width)` for every barrier term of particle `i` at `p` within its
+    /// band's top plus `margin` (m) of surface j, with the band's bottom `lo` and `width` (m);
+    /// stops and returns false as soon as `f` does. A term is the surface's nearest point (an
+    /// analytic shape; a mesh the particle is at or below the band's bottom of, or whose layer
+    /// the particle started within), or else one for each of the mesh's triangles within
+    /// reach (their nearest points are no nearer than the surface's).
     #[inline]
     fn band_surfaces(
         &self,
@@ -225,7 +228,8 @@ impl NewtonContact {
         for &j in self.candidates(i, lo + width + margin, moved) {
             let (j, shape) = (j as usize, &self.surfaces[j as usize]);
             let start = self.from(i, j);
-            let (lo, width) = barrier_band(self.layer(i, j));
+            let layer = self.layer(i, j);
+            let (lo, width) = barrier_band(layer);
             let top = lo + width + margin;
             if self.out_of_reach(i, j, top, p, start) && self.out_of_reach(i, j, top, at, start) {
                 continue;
@@ -233,7 +237,27 @@ impl NewtonContact {
             let Some(s) = shape.contact(p, at, self.reach(top, p, at)) else {
                 continue;
             };
-            if s.distance < top && !f(j, &s, lo, width) {
+            if s.distance >= top {
+                continue;
+            }
+            if s.distance <= lo || !shape.is_mesh() || layer < self.colliders.thickness {
+                if !f(j, &s, lo, width) {
+                    return false;
+                }
+                continue;
+            }
+            // In front of a mesh: a barrier for every triangle within the band, as incremental
+            // potential contact sums its point–triangle pairs. The nearest point's alone has a
+            // kink where two faces of a fold in the body are equally near, and a particle
+            // pressed into the fold sat on it, its residual thousands of times the tolerance
+            // (the dress on the kicking mannequin). Not where the particle started closer than
+            // the thickness (a thinned layer): a garment made through thin parts of a body (the
+            // robot skirt's waist) would be held between triangles on both sides for good.
+            let mut feasible = true;
+            shape.each_triangle_within(p, top, |t| {
+                feasible = feasible && f(j, &t, lo, width);
+            });
+            if !feasible {
                 return false;
             }
         }
@@ -682,11 +706,11 @@ impl NewtonContact {
         barrier + friction
     }
 
-    /// Appends to `out` the barrier planes of particle `i` at `p`: for every collider whose
-    /// surface is within its band's top plus `margin` of `p`, the tangent plane at the nearest
-    /// surface point, for [`NewtonContact::particle_terms`] to evaluate the barrier against
-    /// while `p` moves by less than `margin`. On a convex collider the plane is never farther
-    /// than the surface, so a position the planes allow is feasible.
+    /// Appends to `out` the barrier planes of particle `i` at `p`: for every barrier term within
+    /// its band's top plus `margin` of `p` ([`NewtonContact::band_surfaces`]), the plane through
+    /// the term's nearest point facing `p`, for [`NewtonContact::particle_terms`] to evaluate
+    /// the barrier against while `p` moves by less than `margin`. A triangle, or a convex
+    /// collider, is never nearer than its plane, so a position the planes allow is feasible.
     pub fn barrier_planes(&self, i: usize, p: DVec3, margin: f64, out: &mut Vec<BarrierPlane>) {
         if self.barrier.is_empty() {
             return;
@@ -1039,6 +1063,60 @@ mod tests {
         let (lo, _) = barrier_band(MIN_BARRIER_LAYER * thickness);
         assert!(x[0].x > 0.1 + lo, "still in the leg at {}", x[0]);
         assert!(contact.energy(&x).is_finite());
+    }
+
+    /// A particle pressed into a fold of a mesh (two faces at a right angle, one open piece)
+    /// feels a barrier from each face, as incremental potential contact's point–triangle pairs
+    /// do: the energy is the closed-form sum of both faces' barriers, smooth across the fold's
+    /// bisector. The nearest face's alone would be half of it there, with a kink.
+    #[test]
+    fn a_particle_in_a_fold_feels_both_faces() {
+        let v = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 1.0, 1.0],
+        ]
+        .map(DVec3::from_array)
+        .to_vec();
+        // The floor y = 0 (normal +y) and the wall x = 0 (normal +x), sharing the edge x = y = 0.
+        let t = vec![[0, 3, 2], [0, 2, 1], [0, 4, 5], [0, 5, 3]];
+        let fold = MeshCollider::new(v, t).unwrap();
+        assert!(!fold.is_closed() && fold.parts().is_empty());
+        let sys = lab_system(3, 2e-4);
+        let thickness = 0.01;
+        let colliders = Colliders {
+            shapes: vec![Collider::Mesh(Arc::new(fold))],
+            thickness,
+            friction: 0.0,
+            model: ContactModel::Barrier,
+        };
+        let mut contact = NewtonContact::new(colliders, &sys);
+        let far = |i: usize| DVec3::new(5.0 + 0.05 * i as f64, 5.0, 0.0);
+        let mut x: Vec<DVec3> = (0..sys.len()).map(far).collect();
+        // It starts the step clear of both faces, then moves into the fold.
+        x[0] = DVec3::new(0.05, 0.05, 0.5);
+        contact.begin_step(&x);
+        let (lo, width) = barrier_band(thickness);
+        let c = barrier_strength(sys.mass[0]);
+        let barrier = |d: f64| c * width * barrier_shape((d - lo) / width).0;
+        for (a, b) in [
+            (0.008, 0.008),
+            (0.007, 0.0095),
+            (0.0095, 0.007),
+            (0.006, 0.02),
+        ] {
+            x[0] = DVec3::new(a, b, 0.5);
+            contact.set_iterate(&x);
+            let expected = barrier(a) + if b < lo + width { barrier(b) } else { 0.0 };
+            let energy = contact.energy(&x);
+            assert!(
+                (energy - expected).abs() <= 1e-9 * expected,
+                "at ({a}, {b}): {energy} J, the two faces' barriers {expected} J"
+            );
+        }
     }
 
     /// Each collider carries a particle as its nearest part moves: a particle resting on a still

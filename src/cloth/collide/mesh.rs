@@ -417,6 +417,35 @@ impl MeshCollider {
         }
     }
 
+    /// Calls `f(point, distance)` for every triangle closer to `p` than `radius` (m), with the
+    /// triangle's point nearest to `p` and its distance (m).
+    pub fn each_within(&self, p: DVec3, radius: f64, mut f: impl FnMut(DVec3, f64)) {
+        let r2 = radius * radius;
+        if !(box_distance_squared(p, &self.nodes[0]) < r2) {
+            return;
+        }
+        let mut stack = Stack::new(0u32);
+        while let Some(index) = stack.pop() {
+            let node = &self.nodes[index as usize];
+            if node.count > 0 {
+                let first = node.first as usize;
+                for tri in &self.tris[first..first + node.count as usize] {
+                    let (point, _) = closest_on_triangle(p, tri.a, tri.b, tri.c);
+                    let d2 = p.distance_squared(point);
+                    if d2 < r2 {
+                        f(point, d2.sqrt());
+                    }
+                }
+            } else {
+                for child in [index + 1, node.first] {
+                    if box_distance_squared(p, &self.nodes[child as usize]) < r2 {
+                        stack.push(child);
+                    }
+                }
+            }
+        }
+    }
+
     /// The surface point nearest to `p` among those within `max_distance` (inclusive).
     fn nearest(&self, p: DVec3, max_distance: f64) -> Option<Nearest> {
         let mut best: Option<Nearest> = None;

@@ -203,6 +203,28 @@ impl Collider {
         }
     }
 
+    /// Calls `f` for every triangle of a mesh collider closer to `p` than `radius` (m): its
+    /// point nearest to `p` as a surface point (the distance to it, m, and the direction from
+    /// it to `p`), whichever side `p` is on. Does nothing for the analytic shapes and for a
+    /// triangle `p` lies on.
+    pub fn each_triangle_within(&self, p: DVec3, radius: f64, mut f: impl FnMut(SurfacePoint)) {
+        if let Collider::Mesh(m) | Collider::Moving { after: m, .. } = self {
+            m.each_within(p, radius, |point, distance| {
+                if distance > 0.0 {
+                    f(SurfacePoint {
+                        distance,
+                        normal: (p - point) / distance,
+                    });
+                }
+            });
+        }
+    }
+
+    /// True for a triangle mesh ([`Collider::Mesh`], [`Collider::Moving`]).
+    pub fn is_mesh(&self) -> bool {
+        matches!(self, Collider::Mesh(_) | Collider::Moving { .. })
+    }
+
     /// A body that moves from `before` to `after` during a step (the same triangles; the
     /// positions are metres in the cloth's frame).
     ///
