@@ -421,7 +421,7 @@ impl MeshCollider {
     /// triangle's point nearest to `p` and its distance (m).
     pub fn each_within(&self, p: DVec3, radius: f64, mut f: impl FnMut(DVec3, f64)) {
         let r2 = radius * radius;
-        if !(box_distance_squared(p, &self.nodes[0]) < r2) {
+        if box_distance_squared(p, &self.nodes[0]) >= r2 {
             return;
         }
         let mut stack = Stack::new(0u32);
