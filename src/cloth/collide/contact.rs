@@ -356,6 +356,9 @@ impl NewtonContact {
             }
             self.every = (0..self.surfaces.len() as u32).collect();
             self.far_clear.clear();
+            self.clear.clear();
+            self.carry.clear();
+            self.seat.clear();
             self.layer.clear();
             self.lagged.clear();
             self.lagged_start.fill(0);
@@ -449,7 +452,7 @@ impl NewtonContact {
         seat.clear();
         for i in 0..x0.len() {
             for (j, shape) in self.surfaces.iter().enumerate() {
-                let mesh = matches!(shape, Collider::Mesh(_) | Collider::Moving { .. });
+                let mesh = shape.is_mesh();
                 let layer = self.layer(i, j);
                 let (lo, width) = barrier_band(layer);
                 let from = self.from(i, j);
@@ -990,7 +993,6 @@ mod tests {
         assert_eq!(contact.energy(&inside), f64::INFINITY);
     }
 
-    /// The lab cloth's n×n grid, nothing pinned, every particle `mass` kg, at a garment's step.
     /// One mesh of the given boxes (each a closed piece, welded by position only) and, with
     /// `sheet`, an open square far from them.
     fn pieces(boxes: &[(DVec3, DVec3)], sheet: bool) -> (Vec<DVec3>, Vec<[u32; 3]>) {
@@ -1158,6 +1160,7 @@ mod tests {
         assert!(contact.carry(1).abs_diff_eq(DVec3::Z * 0.06, 1e-9));
     }
 
+    /// The lab cloth's n×n grid, nothing pinned, every particle `mass` kg, at a garment's step.
     fn lab_system(n: u32, mass: f64) -> ReducedSystem {
         lab_cloth(n, 100.0)
             .system(mass, false, StepParams::garment())

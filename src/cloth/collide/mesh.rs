@@ -681,7 +681,7 @@ enum Split {
     Whole,
 }
 
-/// The parts of a mesh that is not closed as a whole ([`MeshCollider::parts`]): its connected
+/// The parts of a mesh ([`MeshCollider::parts`]): its connected
 /// pieces (triangles sharing a welded position), each closed one a part and the open ones
 /// together another; `None` when there is one piece or no closed one.
 fn partition(positions: &[DVec3], triangles: &[[u32; 3]], weld: &[u32]) -> Option<Partition> {

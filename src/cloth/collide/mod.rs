@@ -247,20 +247,20 @@ impl Collider {
             Collider::Mesh(m) if !m.parts().is_empty() => {
                 m.parts().iter().cloned().map(Collider::Mesh).collect()
             }
-            Collider::Moving {
-                before,
-                after,
-                motion,
-            } if !after.parts().is_empty() && before.parts().len() == after.parts().len() => before
-                .parts()
-                .iter()
-                .zip(after.parts())
-                .map(|(before, after)| Collider::Moving {
-                    motion: farthest(before.positions(), after.positions()),
-                    before: Arc::clone(before),
-                    after: Arc::clone(after),
-                })
-                .collect(),
+            Collider::Moving { before, after, .. }
+                if !after.parts().is_empty() && before.parts().len() == after.parts().len() =>
+            {
+                before
+                    .parts()
+                    .iter()
+                    .zip(after.parts())
+                    .map(|(before, after)| Collider::Moving {
+                        motion: farthest(before.positions(), after.positions()),
+                        before: Arc::clone(before),
+                        after: Arc::clone(after),
+                    })
+                    .collect()
+            }
             _ => vec![self.clone()],
         }
     }
