@@ -376,6 +376,13 @@ pub fn simulate_driven(
                     reason,
                     advice,
                 },
+                // A matrix that stops factoring mid-bake, every split tried, is a divergence
+                // too (the dress on the whole kick, past its 30th frame).
+                Error::Factorisation(m) => Error::Diverged {
+                    frame,
+                    reason: format!("the solver's matrix did not factor ({m})"),
+                    advice: Vec::new(),
+                },
                 e => e,
             })?;
             stats = Some(stats.map_or(s, |before| before.then(s)));
