@@ -1015,6 +1015,23 @@ mod tests {
         (v, t)
     }
 
+    /// Barrier contact with the one collider `shape` for the lab cloth's 3×3 grid, and the grid's
+    /// particles far from it (for a test to place the ones it looks at).
+    fn barrier_on(shape: Collider, thickness: f64) -> (ReducedSystem, NewtonContact, Vec<DVec3>) {
+        let sys = lab_system(3, 2e-4);
+        let colliders = Colliders {
+            shapes: vec![shape],
+            thickness,
+            friction: 0.0,
+            model: ContactModel::Barrier,
+        };
+        let contact = NewtonContact::new(colliders, &sys);
+        let far = (0..sys.len())
+            .map(|i| DVec3::new(5.0 + 0.05 * i as f64, 5.0, 0.0))
+            .collect();
+        (sys, contact, far)
+    }
+
     /// A hip box with a leg box reaching into it from below, and a loose open sheet: as one
     /// mesh neither closed nor one piece.
     fn hips_and_leg() -> (Vec<DVec3>, Vec<[u32; 3]>) {
@@ -1045,17 +1062,8 @@ mod tests {
         assert!(leg.normal.abs_diff_eq(DVec3::X, 1e-9));
         assert!(body.contact(inside, inside, 0.05).unwrap().distance > 0.0);
 
-        let sys = lab_system(3, 2e-4);
         let thickness = 0.004;
-        let colliders = Colliders {
-            shapes: vec![Collider::Mesh(Arc::new(body))],
-            thickness,
-            friction: 0.0,
-            model: ContactModel::Barrier,
-        };
-        let mut contact = NewtonContact::new(colliders, &sys);
-        let far = |i: usize| DVec3::new(1.0 + 0.05 * i as f64, 5.0, 0.0);
-        let mut x: Vec<DVec3> = (0..sys.len()).map(far).collect();
+        let (_, mut contact, mut x) = barrier_on(Collider::Mesh(Arc::new(body)), thickness);
         x[0] = inside;
         contact.begin_step(&x);
         assert_eq!(contact.make_feasible(&mut x), 0);
@@ -1087,17 +1095,8 @@ mod tests {
         let t = vec![[0, 3, 2], [0, 2, 1], [0, 4, 5], [0, 5, 3]];
         let fold = MeshCollider::new(v, t).unwrap();
         assert!(!fold.is_closed() && fold.parts().is_empty());
-        let sys = lab_system(3, 2e-4);
         let thickness = 0.01;
-        let colliders = Colliders {
-            shapes: vec![Collider::Mesh(Arc::new(fold))],
-            thickness,
-            friction: 0.0,
-            model: ContactModel::Barrier,
-        };
-        let mut contact = NewtonContact::new(colliders, &sys);
-        let far = |i: usize| DVec3::new(5.0 + 0.05 * i as f64, 5.0, 0.0);
-        let mut x: Vec<DVec3> = (0..sys.len()).map(far).collect();
+        let (sys, mut contact, mut x) = barrier_on(Collider::Mesh(Arc::new(fold)), thickness);
         // It starts the step clear of both faces, then moves into the fold.
         x[0] = DVec3::new(0.05, 0.05, 0.5);
         contact.begin_step(&x);
@@ -1141,16 +1140,7 @@ mod tests {
         let before = Arc::new(MeshCollider::new(before, t).unwrap());
         assert_eq!(before.parts().len(), 2);
         let body = Collider::moving(before, after).unwrap();
-        let sys = lab_system(3, 2e-4);
-        let colliders = Colliders {
-            shapes: vec![body],
-            thickness: 0.004,
-            friction: 0.0,
-            model: ContactModel::Barrier,
-        };
-        let mut contact = NewtonContact::new(colliders, &sys);
-        let far = |i: usize| DVec3::new(1.0 + 0.05 * i as f64, 5.0, 0.0);
-        let mut x: Vec<DVec3> = (0..sys.len()).map(far).collect();
+        let (_, mut contact, mut x) = barrier_on(body, 0.004);
         // Resting 3 mm off the still box's +x face, 4.7 cm from the moving one.
         x[0] = DVec3::new(0.103, 0.0, 0.0);
         // And one resting on the moving box's +x face.
