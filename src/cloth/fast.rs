@@ -736,6 +736,7 @@ impl StepSolver for FastSolver {
             contacts,
             self_contacts: 0,
             steps: 1,
+            pinched: 0,
         })
     }
 }

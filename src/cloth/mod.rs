@@ -74,6 +74,10 @@ pub struct StepStats {
     /// Solver steps taken (1 a step; more where it was split, [`BakeParams::splits`]; summed over
     /// a frame's substeps).
     pub steps: usize,
+    /// Particles a moving body pinched behind its surface at the step's start, released from
+    /// it until they come out (summed over a frame's steps; see
+    /// [`collide::contact::NewtonContact::make_feasible`]).
+    pub pinched: usize,
 }
 
 impl StepStats {
@@ -86,6 +90,7 @@ impl StepStats {
             contacts: self.contacts.max(next.contacts),
             self_contacts: self.self_contacts.max(next.self_contacts),
             steps: self.steps + next.steps,
+            pinched: self.pinched + next.pinched,
         }
     }
 }

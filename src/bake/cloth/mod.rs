@@ -1503,6 +1503,7 @@ fn environment_report(params: &BakeParams, frames: &[StepStats]) -> Option<Envir
         friction: c.friction,
         contact: c.model,
         contacts: frames.iter().map(|f| f.contacts).collect(),
+        pinched: frames.iter().map(|f| f.pinched).collect(),
         wind: params.wind.as_ref().map(|w| WindReport {
             velocity: w.velocity.to_array(),
             drag: w.drag,
@@ -1600,11 +1601,32 @@ fn report(
         warnings: {
             let mut w = model.warnings.clone();
             w.extend(convergence_warning(frames, params.tolerance));
+            w.extend(pinch_warning(frames));
             w.extend(quality_warnings(&quality, params.self_contact.is_some()));
             w
         },
         quality,
     }
+}
+
+/// "a moving body pinched 23 particles behind its surface in 11 frames (most 4 at frame 29)
+/// ...", when it did.
+fn pinch_warning(frames: &[StepStats]) -> Option<Text> {
+    let pinched: usize = frames.iter().map(|f| f.pinched).sum();
+    if pinched == 0 {
+        return None;
+    }
+    let (most, at) = frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| (f.pinched, i + 1))
+        .fold((0, 0), |a, b| if b.0 > a.0 { b } else { a });
+    Some(text!(format!(
+        "a moving body pinched {pinched} particles behind its surface, in {} frames (most {most} \
+         at frame {at}): they were let through it until they came out; see \
+         environment.pinched and quality.body_crossings",
+        frames.iter().filter(|f| f.pinched > 0).count()
+    )))
 }
 
 /// "31 of 48 frames ended above the tolerance 0.05 (worst 3.2 at frame 7)", when any did.

@@ -270,6 +270,9 @@ pub struct EnvironmentReport {
     pub contact: ContactModel,
     /// Particles touching a collider at the end of each frame.
     pub contacts: Vec<usize>,
+    /// Particles a moving body pinched behind its surface in each frame (summed over its
+    /// steps): released from it until they came out, where the cloth went through the body.
+    pub pinched: Vec<usize>,
     /// The wind, when any.
     pub wind: Option<WindReport>,
 }

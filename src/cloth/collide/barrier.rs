@@ -18,6 +18,9 @@ pub struct BarrierPlane {
     /// The band's bottom and width, m.
     pub(super) lo: f64,
     pub(super) width: f64,
+    /// How far above the band's bottom a position must stay to be allowed, m (see
+    /// [`super::contact::GAP_KEPT`]).
+    pub(super) kept: f64,
 }
 
 impl BarrierPlane {
@@ -28,10 +31,11 @@ impl BarrierPlane {
         (self.normal.dot(p) + self.offset - self.lo) / self.width
     }
 
-    /// Whether `p` is above the band's bottom, where the barrier is finite.
+    /// Whether `p` is above the band's bottom by more than `kept` (where the barrier is
+    /// finite).
     #[inline]
     pub fn allows(&self, p: DVec3) -> bool {
-        self.depth(p) > 0.0
+        self.normal.dot(p) + self.offset - self.lo > self.kept
     }
 }
 

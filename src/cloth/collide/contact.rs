@@ -76,7 +76,8 @@ pub struct NewtonContact {
     x0: Vec<DVec3>,
     /// Per particle and surface (`i·surfaces + j`): the distance it is kept at, m. The collision
     /// thickness, except for a particle that started closer to that collider (see
-    /// [`rest_layer`]). Empty until the first step.
+    /// [`rest_layer`]), and zero while a moving body has it pinched inside that surface
+    /// ([`NewtonContact::make_feasible`]). Empty until the first step.
     layer: Vec<f64>,
     /// Per particle and surface (`i·surfaces + j`): how far the collider's surface near the
     /// particle moves during the step, m (see [`Collider::carry`]). Empty while every collider
@@ -108,6 +109,14 @@ pub struct NewtonContact {
     /// barrier's queries look from: the segment from it to a trial point is the line search's
     /// path, so a trial that crossed a surface on the way is infeasible.
     iterate: Vec<DVec3>,
+    /// Per particle, with the barrier: its least distance above a band's bottom at the last
+    /// iterate Newton assembled ([`NewtonContact::add_derivatives`]), infinite where it was in
+    /// no band, zero before the step's first assembly (m). A trial keeps [`GAP_KEPT`] of it
+    /// (see [`NewtonContact::barrier_contacts`]).
+    gap: Vec<f64>,
+    /// Particles released in this step: pinched behind a moving body's surface
+    /// ([`NewtonContact::make_feasible`]).
+    pinched: usize,
     /// Per particle and surface (`i·surfaces + j`), with the barrier: the distance the particle
     /// starts the step at where that is inside its band, else its layer (m): where
     /// [`NewtonContact::project`] puts a particle that went closer, so a particle resting on a
@@ -138,6 +147,16 @@ pub enum ContactModel {
 /// particle, in collision thicknesses: a particle farther than this from every mesh skips their
 /// queries while its motion in the step stays below about half of it.
 const CLEAR_REACH: f64 = 16.0;
+
+/// The fraction of its distance above a band's bottom (at most the band's width) a particle
+/// keeps from one Newton iterate to the next: additive CCD's safety gap (Li et al. 2021) for
+/// the colliders' barrier. Without it a line search could land a particle anywhere above the
+/// bottom: on the dress on the kicking mannequin one landed at u = 1e-10, its Hessian block
+/// 2e19 N/m against 3.4 N/m elsewhere, and the matrix no longer factored in double precision.
+pub(super) const GAP_KEPT: f64 = 0.1;
+
+/// The layer of a particle released from a surface ([`NewtonContact::make_feasible`]).
+const RELEASED: f64 = 0.0;
 
 impl NewtonContact {
     /// Contact for `sys`'s particles, by the colliders' model ([`Colliders::model`]).
@@ -171,6 +190,8 @@ impl NewtonContact {
             clear: Vec::new(),
             barrier,
             iterate: vec![DVec3::ZERO; sys.len()],
+            gap: vec![0.0; sys.len()],
+            pinched: 0,
             seat: Vec::new(),
         }
     }
@@ -189,7 +210,8 @@ impl NewtonContact {
     /// Calls `f(j, surface, u, width)` for every barrier term of particle `i` at `p` (see
     /// [`NewtonContact::band_surfaces`]), u ∈ (0, 1) its depth into surface j's band (see
     /// [`barrier_shape`]) and `width` the band's (m); returns false, having stopped, when `p`
-    /// is at or below a band's bottom (infeasible).
+    /// is not above a band's bottom by [`GAP_KEPT`] of the particle's gap at the last
+    /// assembled iterate (at most of the band's width; infeasible).
     #[inline]
     fn barrier_contacts(
         &self,
@@ -197,9 +219,10 @@ impl NewtonContact {
         p: DVec3,
         mut f: impl FnMut(usize, &SurfacePoint, f64, f64),
     ) -> bool {
+        let gap = self.gap[i];
         self.band_surfaces(i, p, 0.0, |j, s, lo, width| {
             let u = (s.distance - lo) / width;
-            if u <= 0.0 {
+            if u <= kept(gap, width) / width {
                 return false;
             }
             f(j, s, u, width);
@@ -229,6 +252,9 @@ impl NewtonContact {
             let (j, shape) = (j as usize, &self.surfaces[j as usize]);
             let start = self.from(i, j);
             let layer = self.layer(i, j);
+            if layer == RELEASED {
+                continue;
+            }
             let (lo, width) = barrier_band(layer);
             let top = lo + width + margin;
             if self.out_of_reach(i, j, top, p, start) && self.out_of_reach(i, j, top, at, start) {
@@ -271,7 +297,13 @@ impl NewtonContact {
     /// layer thins to the distance it is at (it grows back as the particle moves away, see
     /// [`NewtonContact::end_step`]). Returns how many particles remain behind a surface (none
     /// in a feasible start).
-    pub fn make_feasible(&mut self, x: &mut [DVec3]) -> usize {
+    ///
+    /// With `release` (a body moving between steps), a particle still behind a surface is
+    /// pinched: a body closed in on it closer than two layers (cloth caught where two thighs
+    /// meet). It is released from that surface instead, held off it no more until it has come
+    /// out of it by a tenth of the thickness ([`NewtonContact::end_step`]), and counted
+    /// ([`NewtonContact::pinched`]); the frame's crossing count shows where it went through.
+    pub fn make_feasible(&mut self, x: &mut [DVec3], release: bool) -> usize {
         const ROUNDS: usize = 4;
         let mut behind = 0;
         for (i, p) in x.iter_mut().enumerate() {
@@ -294,8 +326,12 @@ impl NewtonContact {
             if self.behind_any(i, *p, at) {
                 *p = at;
             }
+            let mut pinched = false;
             for (j, shape) in self.surfaces.iter().enumerate() {
                 let k = i * self.surfaces.len() + j;
+                if self.layer[k] == RELEASED {
+                    continue;
+                }
                 let (lo, width) = barrier_band(self.layer(i, j));
                 let Some(s) = shape.contact(*p, at, self.reach(lo + width, *p, at)) else {
                     continue;
@@ -303,22 +339,34 @@ impl NewtonContact {
                 if s.distance <= lo {
                     if s.distance > 0.0 {
                         self.layer[k] = s.distance;
+                    } else if release {
+                        self.layer[k] = RELEASED;
+                        pinched = true;
                     } else {
                         behind += 1;
                     }
                 }
             }
+            self.pinched += usize::from(pinched);
         }
         behind
+    }
+
+    /// Particles released in this step, pinched behind a moving body's surface
+    /// ([`NewtonContact::make_feasible`]).
+    pub fn pinched(&self) -> usize {
+        self.pinched
     }
 
     /// True when particle `i` at `p`, looked at from `at`, is on or behind a collider's surface.
     fn behind_any(&self, i: usize, p: DVec3, at: DVec3) -> bool {
         self.surfaces.iter().enumerate().any(|(j, shape)| {
-            let (lo, width) = barrier_band(self.layer(i, j));
-            shape
-                .contact(p, at, self.reach(lo + width, p, at))
-                .is_some_and(|s| s.distance <= 0.0)
+            let layer = self.layer(i, j);
+            let (lo, width) = barrier_band(layer);
+            layer != RELEASED
+                && shape
+                    .contact(p, at, self.reach(lo + width, p, at))
+                    .is_some_and(|s| s.distance <= 0.0)
         })
     }
 
@@ -395,6 +443,8 @@ impl NewtonContact {
     /// there: the distance it starts at ([`rest_layer`]).
     pub fn begin_step(&mut self, x0: &[DVec3]) {
         self.x0.copy_from_slice(x0);
+        self.gap.fill(0.0);
+        self.pinched = 0;
         let shapes = self.surfaces.len();
         self.carry.clear();
         self.carried.clear();
@@ -553,6 +603,9 @@ impl NewtonContact {
                 Some(seat) => *seat,
                 None => self.layer(i, j),
             };
+            if self.layer(i, j) == RELEASED {
+                continue;
+            }
             let touch = self.touch(layer);
             if self.out_of_reach(i, j, touch, *p, x0) {
                 continue;
@@ -598,8 +651,9 @@ impl NewtonContact {
     fn resting_on(&self, i: usize, p: DVec3) -> Option<(usize, SurfacePoint)> {
         self.surfaces.iter().enumerate().find_map(|(j, shape)| {
             let x0 = self.from(i, j);
-            let touch = self.touch(self.layer(i, j));
-            if self.out_of_reach(i, j, touch, p, x0) {
+            let layer = self.layer(i, j);
+            let touch = self.touch(layer);
+            if layer == RELEASED || self.out_of_reach(i, j, touch, p, x0) {
                 return None;
             }
             shape
@@ -718,12 +772,14 @@ impl NewtonContact {
         if self.barrier.is_empty() {
             return;
         }
+        let gap = self.gap[i];
         self.band_surfaces(i, p, margin, |_, s, lo, width| {
             out.push(BarrierPlane {
                 normal: s.normal,
                 offset: s.distance - s.normal.dot(p),
                 lo,
                 width,
+                kept: kept(gap, width),
             });
             true
         });
@@ -744,12 +800,12 @@ impl NewtonContact {
         if let Some(c) = self.barrier.get(i) {
             let (mut dg, mut dh) = (DVec3::ZERO, DMat3::ZERO);
             for plane in planes {
+                if !plane.allows(p) {
+                    return false;
+                }
                 let u = plane.depth(p);
                 if u >= 1.0 {
                     continue;
-                }
-                if u <= 0.0 {
-                    return false;
                 }
                 let (_, d1, d2) = barrier_shape(u);
                 let n = plane.normal;
@@ -771,7 +827,7 @@ impl NewtonContact {
     /// Adds the gradient of [`NewtonContact::energy`] to `grad` and passes each particle's 3×3
     /// Hessian block (rows) to `block`.
     pub fn add_derivatives(
-        &self,
+        &mut self,
         x: &[DVec3],
         grad: &mut [DVec3],
         mut block: impl FnMut(usize, [[f64; 3]; 3]),
@@ -779,13 +835,16 @@ impl NewtonContact {
         // Barrier: gradient c·β′(u)·n, Hessian c·β″(u)/width·n nᵀ (the surface's curvature term
         // c·β′·∇²s is left out: for a convex collider it is negative semi-definite, and leaving
         // it out keeps the block positive semi-definite, as incremental potential contact's
-        // projection does).
+        // projection does). Each particle's least gap is recorded for the trials to keep.
         for (i, (p, c)) in x.iter().zip(&self.barrier).enumerate() {
+            let mut gap = f64::INFINITY;
             self.barrier_contacts(i, *p, |_, s, u, width| {
                 let (_, d1, d2) = barrier_shape(u);
                 grad[i] += s.normal * (c * d1);
                 block(i, outer(s.normal, s.normal, c * d2 / width));
+                gap = gap.min(u * width);
             });
+            self.gap[i] = gap;
         }
         for c in &self.lagged {
             let i = c.particle as usize;
@@ -855,6 +914,10 @@ impl NewtonContact {
                 let distance = self.surfaces[j]
                     .contact(x[i], from, reach)
                     .map_or(top * t, |s| s.distance);
+                if self.layer[k] == RELEASED && distance < top * MIN_BARRIER_LAYER * t {
+                    // Still inside, or too near to hold without a band thinner than a tenth.
+                    continue;
+                }
                 self.layer[k] = self.layer[k].max(distance / top).min(t);
             }
         }
@@ -880,6 +943,13 @@ impl NewtonContact {
 #[inline]
 pub fn rest_layer(t: f64, start: Option<SurfacePoint>) -> f64 {
     start.map_or(t, |s| s.distance.min(t))
+}
+
+/// How far above a band's bottom (m) a trial keeps a particle whose gap at the last assembled
+/// iterate was `gap`, in a band `width` wide: [`GAP_KEPT`] of the lesser.
+#[inline]
+fn kept(gap: f64, width: f64) -> f64 {
+    GAP_KEPT * gap.min(width)
 }
 
 /// w·a bᵀ as rows.
@@ -993,6 +1063,46 @@ mod tests {
         assert_eq!(contact.energy(&inside), f64::INFINITY);
     }
 
+    /// From one assembled iterate to the next, a particle keeps a tenth of its gap above the
+    /// band's bottom (of the band's width where it was in no band), in the line search's trials
+    /// (the energy) and in the sweeps' local steps (the planes) alike; before a step's first
+    /// assembly only the bottom itself is refused.
+    #[test]
+    fn a_trial_keeps_a_tenth_of_the_gap_above_the_band_bottom() {
+        let t = 0.004; // band (2, 6) mm
+        let floor = Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap());
+        let (_, mut contact, far) = barrier_on(floor, t);
+        let at = |y: f64| {
+            let mut x = far.clone();
+            x[0] = DVec3::new(0.0, y, 0.0);
+            x
+        };
+        let allowed = |contact: &NewtonContact, y: f64| {
+            let energy = contact.energy(&at(y)).is_finite();
+            let mut planes = Vec::new();
+            contact.barrier_planes(0, DVec3::new(0.0, 0.005, 0.0), t, &mut planes);
+            let plane = planes.iter().all(|p| p.allows(DVec3::new(0.0, y, 0.0)));
+            assert_eq!(energy, plane, "the energy and the planes agree at y = {y}");
+            energy
+        };
+        for (iterate, kept) in [(0.005, 3e-4), (0.010, 0.1 * t)] {
+            let x = at(iterate);
+            contact.begin_step(&x);
+            contact.set_iterate(&x);
+            assert!(
+                allowed(&contact, 0.002 + 1e-6),
+                "no floor before an assembly"
+            );
+            let mut grad = vec![DVec3::ZERO; x.len()];
+            contact.add_derivatives(&x, &mut grad, |_, _| {});
+            assert!(allowed(&contact, 0.002 + 1.05 * kept));
+            assert!(
+                !allowed(&contact, 0.002 + 0.95 * kept),
+                "from y = {iterate}"
+            );
+        }
+    }
+
     /// One mesh of the given boxes (each a closed piece, welded by position only) and, with
     /// `sheet`, an open square far from them.
     fn pieces(boxes: &[(DVec3, DVec3)], sheet: bool) -> (Vec<DVec3>, Vec<[u32; 3]>) {
@@ -1066,7 +1176,7 @@ mod tests {
         let (_, mut contact, mut x) = barrier_on(Collider::Mesh(Arc::new(body)), thickness);
         x[0] = inside;
         contact.begin_step(&x);
-        assert_eq!(contact.make_feasible(&mut x), 0);
+        assert_eq!(contact.make_feasible(&mut x, false), 0);
         // Outside the leg's +x face (x = 0.1), beyond the bottom of the barrier band of the
         // thinnest layer (a particle that starts behind a surface is moved out to a tenth of
         // the thickness).

@@ -186,14 +186,18 @@ impl NewtonSolver {
     /// cut where it would; the colliders are asked again after a cut, a few rounds).
     ///
     /// # Errors
-    /// [`Error::Diverged`] when particles stay behind a collider's surface.
+    /// [`Error::Diverged`] when particles stay behind a collider's surface (at the first step,
+    /// or where no collider moves: a moving body's pinch releases them instead, see
+    /// [`NewtonContact::make_feasible`]).
     pub(super) fn feasible_start(&mut self, x: &mut [DVec3]) -> Result<()> {
         const ROUNDS: usize = 3;
         let x0 = std::mem::take(&mut self.x0);
         let mut behind = 0;
+        // A body moving between steps may close in on a particle (not the input's start).
+        let release = self.steps > 0 && self.contact.as_ref().is_some_and(NewtonContact::moves);
         for round in 0..=ROUNDS {
             if let Some(c) = self.contact.as_mut().filter(|c| c.is_barrier()) {
-                behind = c.make_feasible(x);
+                behind = c.make_feasible(x, release);
             }
             let t = self.self_path(&x0, x);
             if t == 1.0 {

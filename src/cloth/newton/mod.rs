@@ -824,9 +824,9 @@ impl StepSolver for NewtonSolver {
             }
             None => 0,
         };
-        let contacts = match &mut self.contact {
-            Some(c) => c.end_step(x, &self.grad),
-            None => 0,
+        let (contacts, pinched) = match &mut self.contact {
+            Some(c) => (c.end_step(x, &self.grad), c.pinched()),
+            None => (0, 0),
         };
         Ok(StepStats {
             iterations,
@@ -835,6 +835,7 @@ impl StepSolver for NewtonSolver {
             contacts,
             self_contacts,
             steps: 1,
+            pinched,
         })
     }
 }

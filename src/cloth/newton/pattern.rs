@@ -503,7 +503,7 @@ impl NewtonSolver {
             grad,
             values,
         );
-        if let Some(contact) = &self.contact {
+        if let Some(contact) = &mut self.contact {
             let diag = &self.diag;
             contact.add_derivatives(x, grad, |i, he| add_diag(values, &diag[i], &he));
         }
