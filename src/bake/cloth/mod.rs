@@ -1609,8 +1609,8 @@ fn report(
     }
 }
 
-/// "a moving body pinched 23 particles behind its surface in 11 frames (most 4 at frame 29)
-/// ...", when it did.
+/// "a moving body pinched 23 particles behind its surface, in 11 frames (most 4 at frame 29):
+/// …", when one did.
 fn pinch_warning(frames: &[StepStats]) -> Option<Text> {
     let pinched: usize = frames.iter().map(|f| f.pinched).sum();
     if pinched == 0 {
