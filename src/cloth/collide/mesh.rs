@@ -716,21 +716,14 @@ fn partition(positions: &[DVec3], triangles: &[[u32; 3]], weld: &[u32]) -> Optio
     if pieces.len() < 2 {
         return None;
     }
-    // A piece is closed when each of its directed edges occurs once and its reverse once (a
-    // twin is always in the same piece).
-    let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * triangles.len());
-    let edges = |t: &[u32; 3]| {
-        let t = *t;
-        (0..3).map(move |e| (weld[t[e] as usize], weld[t[(e + 1) % 3] as usize]))
-    };
-    for t in triangles {
-        for key in edges(t) {
-            *directed.entry(key).or_insert(0) += 1;
-        }
-    }
+    // A piece is closed when every edge of it has a twin (always in the same piece).
+    let directed = directed_edges(triangles, weld);
     let closed_piece = |piece: &Vec<[u32; 3]>| {
-        piece.iter().flat_map(edges).all(|(a, b)| {
-            a != b && directed.get(&(a, b)) == Some(&1) && directed.get(&(b, a)) == Some(&1)
+        piece.iter().all(|t| {
+            (0..3).all(|e| {
+                let (a, b) = (weld[t[e] as usize], weld[t[(e + 1) % 3] as usize]);
+                twin(&directed, a, b).is_some()
+            })
         })
     };
     let (closed, open): (Vec<_>, Vec<_>) = pieces.into_iter().partition(closed_piece);
@@ -765,6 +758,32 @@ fn partition(positions: &[DVec3], triangles: &[[u32; 3]], weld: &[u32]) -> Optio
     Some(Partition { parts })
 }
 
+/// Directed edges (welded corners) → (the first triangle holding it, how often it occurs).
+fn directed_edges(triangles: &[[u32; 3]], weld: &[u32]) -> HashMap<(u32, u32), (usize, u32)> {
+    let mut directed: HashMap<(u32, u32), (usize, u32)> =
+        HashMap::with_capacity(3 * triangles.len());
+    for (t, tri) in triangles.iter().enumerate() {
+        for e in 0..3 {
+            let key = (weld[tri[e] as usize], weld[tri[(e + 1) % 3] as usize]);
+            directed
+                .entry(key)
+                .and_modify(|entry| entry.1 += 1)
+                .or_insert((t, 1));
+        }
+    }
+    directed
+}
+
+/// The triangle across the directed edge a → b, when the edge is a closed surface's: it occurs
+/// once, its reverse once, and it is not degenerate.
+fn twin(directed: &HashMap<(u32, u32), (usize, u32)>, a: u32, b: u32) -> Option<usize> {
+    let once = directed.get(&(a, b)).is_some_and(|entry| entry.1 == 1);
+    match directed.get(&(b, a)) {
+        Some(&(other, 1)) if once && a != b => Some(other),
+        _ => None,
+    }
+}
+
 /// Whether the surface is closed and consistently oriented, with the edge and vertex
 /// pseudo-normals (Bærentzen & Aanæs 2005) a closed surface needs for its sign test. Vertex
 /// pseudo-normals are stored per position (welded positions share theirs).
@@ -780,29 +799,15 @@ fn topology(
             (b - a).cross(c - a).normalize()
         })
         .collect();
-    // Directed edges (welded corners) → (triangle, edge), and how often each occurs.
-    let mut directed: HashMap<(u32, u32), (usize, usize, u32)> =
-        HashMap::with_capacity(3 * triangles.len());
-    for (t, tri) in triangles.iter().enumerate() {
-        for e in 0..3 {
-            let key = (weld[tri[e] as usize], weld[tri[(e + 1) % 3] as usize]);
-            directed
-                .entry(key)
-                .and_modify(|entry| entry.2 += 1)
-                .or_insert((t, e, 1));
-        }
-    }
+    let directed = directed_edges(triangles, weld);
     let mut closed = true;
     let mut edge_normals: Vec<[DVec3; 3]> = normals.iter().map(|&n| [n; 3]).collect();
     for (t, tri) in triangles.iter().enumerate() {
         for e in 0..3 {
             let (a, b) = (weld[tri[e] as usize], weld[tri[(e + 1) % 3] as usize]);
-            let once = directed.get(&(a, b)).is_some_and(|entry| entry.2 == 1);
-            match directed.get(&(b, a)) {
-                Some(&(other, _, 1)) if once && a != b => {
-                    edge_normals[t][e] = normals[t] + normals[other];
-                }
-                _ => closed = false,
+            match twin(&directed, a, b) {
+                Some(other) => edge_normals[t][e] = normals[t] + normals[other],
+                None => closed = false,
             }
         }
     }
