@@ -155,6 +155,12 @@ const CLEAR_REACH: f64 = 16.0;
 /// 2e19 N/m against 3.4 N/m elsewhere, and the matrix no longer factored in double precision.
 pub(super) const GAP_KEPT: f64 = 0.1;
 
+/// The least depth into a barrier band (u) a step starts a particle at: one a moving body
+/// carried deeper is projected out, or its layer thins to its distance
+/// ([`NewtonContact::make_feasible`]). On a skirt on the walking CesiumMan a particle started
+/// a step at u = 6e-10, its Hessian block 5e18 N/m, and the matrix no longer factored.
+const START_DEPTH: f64 = 1e-3;
+
 /// The layer of a particle released from a surface ([`NewtonContact::make_feasible`]).
 const RELEASED: f64 = 0.0;
 
@@ -291,9 +297,10 @@ impl NewtonContact {
     }
 
     /// Makes `x`, a step's start (projected out of the colliders, [`NewtonContact::project`]),
-    /// feasible for the barrier: a particle still at or below a band's bottom (pushed out of
-    /// one part of a body into another, at a concave spot) is projected again, up to a few
-    /// times; where it then still is within half a layer of a surface, in front of it, that
+    /// feasible for the barrier: a particle still at or below a band's bottom, or less than
+    /// [`START_DEPTH`] of its width above it (pushed out of one part of a body into another, at
+    /// a concave spot; carried towards a surface by a moving body), is projected again, up to
+    /// a few times; where it then still is within half a layer of a surface, in front of it, that
     /// layer thins to the distance it is at (it grows back as the particle moves away, see
     /// [`NewtonContact::end_step`]). Returns how many particles remain behind a surface (none
     /// in a feasible start).
@@ -309,7 +316,9 @@ impl NewtonContact {
         for (i, p) in x.iter_mut().enumerate() {
             let mut feasible = false;
             for _ in 0..ROUNDS {
-                feasible = self.barrier_contacts(i, *p, |_, _, _, _| {});
+                let mut deepest = f64::INFINITY;
+                feasible = self.barrier_contacts(i, *p, |_, _, u, _| deepest = deepest.min(u))
+                    && deepest > START_DEPTH;
                 if feasible {
                     break;
                 }
@@ -336,7 +345,7 @@ impl NewtonContact {
                 let Some(s) = shape.contact(*p, at, self.reach(lo + width, *p, at)) else {
                     continue;
                 };
-                if s.distance <= lo {
+                if s.distance <= lo + START_DEPTH * width {
                     if s.distance > 0.0 {
                         self.layer[k] = s.distance;
                     } else if release {
@@ -1100,6 +1109,34 @@ mod tests {
                 !allowed(&contact, 0.002 + 0.95 * kept),
                 "from y = {iterate}"
             );
+        }
+    }
+
+    /// A step does not start a particle within [`START_DEPTH`] of its band's bottom (where a
+    /// moving body carried it): it is projected out, or where it rests there its layer thins
+    /// to its distance; a particle above that depth is left as it is.
+    #[test]
+    fn a_step_starts_no_particle_at_its_band_bottom() {
+        let t = 0.004; // band (2, 6) mm
+        for depth in [1e-4, 2e-3] {
+            let floor = Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap());
+            let (_, mut contact, mut x) = barrier_on(floor, t);
+            x[0] = DVec3::new(0.0, 0.05, 0.0);
+            contact.begin_step(&x); // layers are the thickness
+            let y = 0.002 + depth * t;
+            x[0] = DVec3::new(0.0, y, 0.0);
+            contact.begin_step(&x);
+            assert_eq!(contact.make_feasible(&mut x, false), 0);
+            let mut deepest = f64::INFINITY;
+            assert!(contact.barrier_contacts(0, x[0], |_, _, u, _| deepest = deepest.min(u)));
+            assert!(deepest > 1e-3, "from u = {depth}: at u = {deepest}");
+            if depth > 1e-3 {
+                assert_eq!(x[0].y, y, "left as it is");
+                assert!(
+                    (deepest - depth).abs() < 1e-12,
+                    "its layer too: u = {deepest}"
+                );
+            }
         }
     }
 
