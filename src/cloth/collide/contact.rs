@@ -150,8 +150,8 @@ const CLEAR_REACH: f64 = 16.0;
 
 /// The fraction of its distance above a band's bottom (at most the band's width) a particle
 /// keeps from one Newton iterate to the next: additive CCD's safety gap (Li et al. 2021) for
-/// the colliders' barrier. Without it a line search could land a particle anywhere above the
-/// bottom: on the dress on the kicking mannequin one landed at u = 1e-10, its Hessian block
+/// the colliders' barrier. Without it a line search may put a particle anywhere above the
+/// bottom: on the dress on the kicking mannequin one sat at u = 1e-10, its Hessian block
 /// 2e19 N/m against 3.4 N/m elsewhere, and the matrix no longer factored in double precision.
 pub(super) const GAP_KEPT: f64 = 0.1;
 
@@ -227,11 +227,10 @@ impl NewtonContact {
     ) -> bool {
         let gap = self.gap[i];
         self.band_surfaces(i, p, 0.0, |j, s, lo, width| {
-            let u = (s.distance - lo) / width;
-            if u <= kept(gap, width) / width {
+            if s.distance - lo <= kept(gap, width) {
                 return false;
             }
-            f(j, s, u, width);
+            f(j, s, (s.distance - lo) / width, width);
             true
         })
     }
@@ -257,10 +256,10 @@ impl NewtonContact {
         for &j in self.candidates(i, lo + width + margin, moved) {
             let (j, shape) = (j as usize, &self.surfaces[j as usize]);
             let start = self.from(i, j);
-            let layer = self.layer(i, j);
-            if layer == RELEASED {
+            if self.released(i, j) {
                 continue;
             }
+            let layer = self.layer(i, j);
             let (lo, width) = barrier_band(layer);
             let top = lo + width + margin;
             if self.out_of_reach(i, j, top, p, start) && self.out_of_reach(i, j, top, at, start) {
@@ -337,10 +336,10 @@ impl NewtonContact {
             }
             let mut pinched = false;
             for (j, shape) in self.surfaces.iter().enumerate() {
-                let k = i * self.surfaces.len() + j;
-                if self.layer[k] == RELEASED {
+                if self.released(i, j) {
                     continue;
                 }
+                let k = i * self.surfaces.len() + j;
                 let (lo, width) = barrier_band(self.layer(i, j));
                 let Some(s) = shape.contact(*p, at, self.reach(lo + width, *p, at)) else {
                     continue;
@@ -370,9 +369,8 @@ impl NewtonContact {
     /// True when particle `i` at `p`, looked at from `at`, is on or behind a collider's surface.
     fn behind_any(&self, i: usize, p: DVec3, at: DVec3) -> bool {
         self.surfaces.iter().enumerate().any(|(j, shape)| {
-            let layer = self.layer(i, j);
-            let (lo, width) = barrier_band(layer);
-            layer != RELEASED
+            let (lo, width) = barrier_band(self.layer(i, j));
+            !self.released(i, j)
                 && shape
                     .contact(p, at, self.reach(lo + width, p, at))
                     .is_some_and(|s| s.distance <= 0.0)
@@ -589,6 +587,13 @@ impl NewtonContact {
         clear > needed * (1.0 + 1e-9) + 1e-9
     }
 
+    /// Whether particle `i` is released from surface `j` (pinched behind it by a moving body,
+    /// see [`NewtonContact::make_feasible`]): no surface holds it there.
+    #[inline]
+    fn released(&self, i: usize, j: usize) -> bool {
+        self.layer(i, j) == RELEASED
+    }
+
     /// The layer of particle `i` and collider `j`, m.
     #[inline]
     fn layer(&self, i: usize, j: usize) -> f64 {
@@ -608,13 +613,13 @@ impl NewtonContact {
         let shapes = self.surfaces.len();
         for (j, shape) in self.surfaces.iter().enumerate() {
             let x0 = self.from(i, j);
+            if self.released(i, j) {
+                continue;
+            }
             let layer = match self.seat.get(i * shapes + j) {
                 Some(seat) => *seat,
                 None => self.layer(i, j),
             };
-            if self.layer(i, j) == RELEASED {
-                continue;
-            }
             let touch = self.touch(layer);
             if self.out_of_reach(i, j, touch, *p, x0) {
                 continue;
@@ -660,9 +665,8 @@ impl NewtonContact {
     fn resting_on(&self, i: usize, p: DVec3) -> Option<(usize, SurfacePoint)> {
         self.surfaces.iter().enumerate().find_map(|(j, shape)| {
             let x0 = self.from(i, j);
-            let layer = self.layer(i, j);
-            let touch = self.touch(layer);
-            if layer == RELEASED || self.out_of_reach(i, j, touch, p, x0) {
+            let touch = self.touch(self.layer(i, j));
+            if self.released(i, j) || self.out_of_reach(i, j, touch, p, x0) {
                 return None;
             }
             shape

@@ -721,7 +721,7 @@ fn partition(positions: &[DVec3], triangles: &[[u32; 3]], weld: &[u32]) -> Optio
     let closed_piece = |piece: &Vec<[u32; 3]>| {
         piece.iter().all(|t| {
             (0..3).all(|e| {
-                let (a, b) = (weld[t[e] as usize], weld[t[(e + 1) % 3] as usize]);
+                let (a, b) = welded_edge(weld, t, e);
                 twin(&directed, a, b).is_some()
             })
         })
@@ -758,13 +758,19 @@ fn partition(positions: &[DVec3], triangles: &[[u32; 3]], weld: &[u32]) -> Optio
     Some(Partition { parts })
 }
 
+/// Edge `e` of triangle `t` (from corner e to the next) as welded positions.
+#[inline]
+fn welded_edge(weld: &[u32], t: &[u32; 3], e: usize) -> (u32, u32) {
+    (weld[t[e] as usize], weld[t[(e + 1) % 3] as usize])
+}
+
 /// Directed edges (welded corners) → (the first triangle holding it, how often it occurs).
 fn directed_edges(triangles: &[[u32; 3]], weld: &[u32]) -> HashMap<(u32, u32), (usize, u32)> {
     let mut directed: HashMap<(u32, u32), (usize, u32)> =
         HashMap::with_capacity(3 * triangles.len());
     for (t, tri) in triangles.iter().enumerate() {
         for e in 0..3 {
-            let key = (weld[tri[e] as usize], weld[tri[(e + 1) % 3] as usize]);
+            let key = welded_edge(weld, tri, e);
             directed
                 .entry(key)
                 .and_modify(|entry| entry.1 += 1)
@@ -804,7 +810,7 @@ fn topology(
     let mut edge_normals: Vec<[DVec3; 3]> = normals.iter().map(|&n| [n; 3]).collect();
     for (t, tri) in triangles.iter().enumerate() {
         for e in 0..3 {
-            let (a, b) = (weld[tri[e] as usize], weld[tri[(e + 1) % 3] as usize]);
+            let (a, b) = welded_edge(weld, tri, e);
             match twin(&directed, a, b) {
                 Some(other) => edge_normals[t][e] = normals[t] + normals[other],
                 None => closed = false,
