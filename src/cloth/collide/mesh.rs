@@ -808,11 +808,11 @@ fn topology(
     let directed = directed_edges(triangles, weld);
     let mut closed = true;
     let mut edge_normals: Vec<[DVec3; 3]> = normals.iter().map(|&n| [n; 3]).collect();
-    for (t, tri) in triangles.iter().enumerate() {
-        for e in 0..3 {
+    for (t, (tri, edges)) in triangles.iter().zip(&mut edge_normals).enumerate() {
+        for (e, edge) in edges.iter_mut().enumerate() {
             let (a, b) = welded_edge(weld, tri, e);
             match twin(&directed, a, b) {
-                Some(other) => edge_normals[t][e] = normals[t] + normals[other],
+                Some(other) => *edge = normals[t] + normals[other],
                 None => closed = false,
             }
         }
