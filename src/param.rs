@@ -170,6 +170,8 @@ params! {
     BlendIn => "blend_in",
     /// The joint the pins ride.
     PinTo => "pin_to",
+    /// How far the pins' skin weights are averaged.
+    PinSmooth => "pin_smooth",
     /// Whether the character's body is a collider.
     BodyCollider => "body_collider",
     /// Body meshes the garment ignores.

@@ -304,6 +304,67 @@ impl CharacterDrive {
         Ok(())
     }
 
+    /// Averages the surface-bound pins' influences over their neighbourhoods: each pin takes the
+    /// mean of the influences of the pins within `radius` metres of it at rest, weighted by a
+    /// Gaussian of standard deviation `radius` / 2, so that two neighbouring pins move almost
+    /// alike even where the skin weights under them change abruptly (a band pinned across the
+    /// hips and a thigh, or the torso and an arm). Pins bound to one joint stay as they are; a
+    /// zero radius changes nothing. The pins keep their rest positions: every influence moves a
+    /// point not at all in the rest pose.
+    pub fn smooth_pins(&mut self, radius: f64) {
+        if !(radius > 0.0) || self.pins.len() < 2 {
+            return;
+        }
+        let reach = radius / self.scale;
+        let sigma2 = (0.5 * reach) * (0.5 * reach);
+        // Pins in order of x, so that each looks only at those within `reach` along x.
+        let mut order: Vec<usize> = (0..self.pins.len()).collect();
+        order.sort_by(|&a, &b| self.pins[a].rest.x.total_cmp(&self.pins[b].rest.x));
+        let nodes = self
+            .pins
+            .iter()
+            .flat_map(|b| b.influences.iter().map(|&(n, _)| n + 1))
+            .max()
+            .unwrap_or(0);
+        let mut sum = vec![0.0; nodes];
+        let mut smoothed = Vec::with_capacity(self.pins.len());
+        for (k, &i) in order.iter().enumerate() {
+            let at = self.pins[i].rest;
+            sum.fill(0.0);
+            let mut total = 0.0;
+            let near = order[..k]
+                .iter()
+                .rev()
+                .take_while(|&&j| at.x - self.pins[j].rest.x <= reach)
+                .chain(
+                    order[k..]
+                        .iter()
+                        .take_while(|&&j| self.pins[j].rest.x - at.x <= reach),
+                );
+            for &j in near {
+                let d2 = self.pins[j].rest.distance_squared(at);
+                if d2 > reach * reach {
+                    continue;
+                }
+                let g = (-0.5 * d2 / sigma2).exp();
+                total += g;
+                for &(n, w) in &self.pins[j].influences {
+                    sum[n] += g * w;
+                }
+            }
+            let influences: Vec<(usize, f64)> = sum
+                .iter()
+                .enumerate()
+                .filter(|&(_, &w)| w > 0.0)
+                .map(|(n, &w)| (n, w / total))
+                .collect();
+            smoothed.push((i, influences));
+        }
+        for (i, influences) in smoothed {
+            self.pins[i].influences = influences;
+        }
+    }
+
     /// Binds `particles` rigidly to node `node`.
     pub fn bind_to_node(&mut self, particles: &[u32], rest: &[DVec3], node: usize) {
         self.pins.extend(particles.iter().map(|&p| Binding {

@@ -436,3 +436,65 @@ fn the_robot_skirt_walks() {
     assert!(strain < 0.10, "an edge stretches {:.1} %", strain * 100.0);
     assert!(out.exists());
 }
+
+/// A band of 31 pins 1 cm apart across CesiumMan's back at shoulder height (the top edge of a
+/// cape): bound each to the skin weights under it, two neighbours move apart over the walk far
+/// more than the body's own skin near them stretches (the weights under the band change from
+/// the torso's to an arm's within a few centimetres); with the weights smoothed over the band
+/// (`--pin-smooth`'s default) no pair stretches more than that skin does.
+#[test]
+fn smoothed_pins_stretch_no_more_than_the_skin_under_them() {
+    use glam::DVec3;
+    use scenebake::bake::cloth::defaults;
+    use scenebake::cloth::drive::CharacterDrive;
+    use scenebake::io::rig::RigDocument;
+
+    let doc = RigDocument::load(&common::mesh_path("CesiumMan.glb")).unwrap();
+    let (skeleton, clip) = (doc.skeleton().unwrap(), doc.clip("#0").unwrap());
+    let bodies = doc.body_meshes().unwrap();
+    let drive = CharacterDrive::new(skeleton, clip, bodies, 1.0, 0.0).unwrap();
+    let band: Vec<DVec3> = (0..31)
+        .map(|i| DVec3::new(-0.12, 1.1, -0.15 + 0.01 * f64::from(i)))
+        .collect();
+    let particles: Vec<u32> = (0..31).collect();
+    let times: Vec<f64> = (0..50)
+        .map(|k| drive.cycle() * f64::from(k) / 50.0)
+        .collect();
+    // The worst stretch of the segments `pairs` of points `at(τ)` over the loop, against rest.
+    let stretch = |pairs: &[[usize; 2]], rest: &[DVec3], at: &dyn Fn(f64) -> Vec<DVec3>| {
+        let mut worst = f64::NEG_INFINITY;
+        for &t in &times {
+            let x = at(t);
+            for &[a, b] in pairs {
+                worst = worst.max(x[a].distance(x[b]) / rest[a].distance(rest[b]) - 1.0);
+            }
+        }
+        worst
+    };
+    let pins_apart = |radius: f64| {
+        let mut d = drive.clone();
+        d.bind_to_surface(&particles, &band).unwrap();
+        d.smooth_pins(radius);
+        let pairs: Vec<[usize; 2]> = (0..30).map(|i| [i, i + 1]).collect();
+        stretch(&pairs, &band, &|t| d.pose(t).pins)
+    };
+    // The skin near the band: the body's edges with both ends within 5 cm of a pin at rest.
+    let body = drive.rest_body().unwrap().unwrap();
+    let rest = body.positions().to_vec();
+    let near = |v: u32| band.iter().any(|p| p.distance(rest[v as usize]) < 0.05);
+    let skin: Vec<[usize; 2]> = scenebake::mesh::edges(body.triangles())
+        .into_iter()
+        .filter(|e| e.iter().all(|&v| near(v)))
+        .map(|e| e.map(|v| v as usize))
+        .collect();
+    assert!(
+        skin.len() >= 4,
+        "{} edges of skin near the band",
+        skin.len()
+    );
+    let skin = stretch(&skin, &rest, &|t| drive.pose(t).body);
+    let (own, smoothed) = (pins_apart(0.0), pins_apart(defaults::PIN_SMOOTH));
+    eprintln!("skin {skin:.3}, pins on their own weights {own:.3}, smoothed {smoothed:.3}");
+    assert!(own > 1.5 * skin, "pins {own}, skin {skin}");
+    assert!(smoothed <= skin, "pins {smoothed}, skin {skin}");
+}

@@ -72,6 +72,22 @@ fn options_that_do_not_apply_to_the_input_are_errors() {
     );
 }
 
+/// `--pin-smooth` is a distance: a negative or non-finite one is refused, naming the option,
+/// before the rig is read or anything written.
+#[test]
+fn a_pin_smoothing_radius_must_be_a_distance() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = s(&crate_path("meshes/garments/fox_cape.obj"));
+    let glb = s(&crate_path("meshes/Fox.glb"));
+    for (bad, shown) in [("-0.1", "-0.1"), ("nan", "NaN"), ("inf", "inf")] {
+        fails_exactly(
+            dir.path(),
+            &["cloth", &obj, "--rig", &glb, &format!("--pin-smooth={bad}"), "-o", "x.glb"],
+            &format!("error: invalid value for --pin-smooth: {shown}: must be zero or a positive number of metres"),
+        );
+    }
+}
+
 /// The triangle membrane is a fabric model of Newton's: with the fast solver, the labs'
 /// springs or their preset it is an error naming the option, before anything is written.
 #[test]

@@ -8,10 +8,11 @@ use std::time::Instant;
 
 use super::{
     check_export_options, export, length_words, prepare_cloth, quality_report, report,
-    scaled_words, simulate_on_body, CharacterReport, ClothJob, ClothReport, Host, PreparedCloth,
-    Switch,
+    scaled_words, simulate_on_body, CharacterReport, ClothJob, ClothReport, Host, PinStrain,
+    PreparedCloth, Switch,
 };
 use crate::cloth::drive::CharacterDrive;
+use crate::cloth::model::ClothModel;
 use crate::cloth::{FrameCache, SolverKind};
 use crate::data::animation::{Clip, SkinnedMesh};
 use crate::error::{Error, ForParam, Result};
@@ -70,6 +71,15 @@ pub fn bake_on_character(
             format!(
                 "{}: must be zero or a positive number of seconds",
                 job.blend_in
+            ),
+        ));
+    }
+    if !(job.pin_smooth.is_finite() && job.pin_smooth >= 0.0) {
+        return Err(Error::param_value(
+            Param::PinSmooth,
+            format!(
+                "{}: must be zero or a positive number of metres",
+                job.pin_smooth
             ),
         ));
     }
@@ -155,6 +165,7 @@ pub fn bake_on_character(
                     ));
                 }
                 drive.bind_to_surface(&pinned, model.positions())?;
+                drive.smooth_pins(job.pin_smooth);
             }
             (pinned.len(), 0)
         }
@@ -193,6 +204,7 @@ pub fn bake_on_character(
         buffer.extend(sim.cache.frame(k).iter().map(|p| p.as_dvec3()));
         cache.push(&buffer);
     }
+    let pin_strain = pin_strain(model, &cache);
     let (first, last) = (sim.cache.frame(first_written), sim.cache.frame(total));
     for (a, b) in first.iter().zip(last) {
         seam = seam.max(f64::from(a.distance(*b)));
@@ -261,6 +273,19 @@ pub fn bake_on_character(
             Param::WarmupCycles
         ));
     }
+    if let Some(worst) = pin_strain.filter(|s| s.strain > job.strain_limit) {
+        out.warnings.push(text!(
+            format!(
+                "the pins alone stretch an edge between two of them by {:.1} % at frame {}, \
+                 past the strain limit (the body's skinning moves them apart); raise ",
+                worst.strain * 100.0,
+                worst.frame,
+            ),
+            Param::PinSmooth,
+            " or bind them to one joint with ",
+            Param::PinTo
+        ));
+    }
     out.character = Some(CharacterReport {
         rig: rig_path,
         animation: clip.name.clone(),
@@ -274,10 +299,39 @@ pub fn bake_on_character(
         pins_on_joint: on_joint,
         body_triangles,
         loop_seam: seam,
+        pin_strain,
     });
     out.warnings
         .extend(rig_warnings.into_iter().map(|w| text!(w)));
     Ok(out)
+}
+
+/// The edge between two pinned particles stretched most, over the written frames of `cache`,
+/// against its rest length in `model`: what the pins' motion alone does to the cloth, whatever
+/// the solver does between them. `None` without such an edge.
+fn pin_strain(model: &ClothModel, cache: &FrameCache) -> Option<PinStrain> {
+    let rest = model.positions();
+    let edges: Vec<([u32; 2], f64)> = crate::mesh::edges(&model.mesh.triangles)
+        .into_iter()
+        .filter(|e| e.iter().all(|&i| model.pinned[i as usize]))
+        .map(|[a, b]| ([a, b], rest[a as usize].distance(rest[b as usize])))
+        .filter(|&(_, r)| r > 0.0)
+        .collect();
+    let mut worst: Option<PinStrain> = None;
+    for frame in 0..cache.frame_count() {
+        let x = cache.frame(frame);
+        for &([a, b], r) in &edges {
+            let strain = f64::from(x[a as usize].distance(x[b as usize])) / r - 1.0;
+            if worst.is_none_or(|w| strain > w.strain) {
+                worst = Some(PinStrain {
+                    strain,
+                    frame,
+                    particles: [a, b],
+                });
+            }
+        }
+    }
+    worst
 }
 
 /// The ratios of the garment's size to the character's (bounding-box diagonals) taken as the

@@ -160,6 +160,21 @@ pub struct CharacterReport {
     /// Largest distance between a particle's position in the first and the last written frame
     /// (the loop's seam), metres.
     pub loop_seam: f64,
+    /// The edge between two pins stretched most over the written frames (`--pin-smooth`);
+    /// absent without one.
+    pub pin_strain: Option<PinStrain>,
+}
+
+/// How far the pins' motion alone stretches the cloth: the worst edge between two pins.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PinStrain {
+    /// Its length over its rest length, less 1 (negative where every such edge is shorter than
+    /// at rest).
+    pub strain: f64,
+    /// The written frame (0 is the output's first).
+    pub frame: usize,
+    /// The two particles.
+    pub particles: [u32; 2],
 }
 
 /// A bake on a body given as a mesh sequence (`--body`).
