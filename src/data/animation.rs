@@ -242,6 +242,15 @@ pub struct Skeleton {
 }
 
 impl Skeleton {
+    /// Per node: whether it is `root` or below it.
+    pub fn subtree(&self, root: usize) -> Vec<bool> {
+        let mut below = vec![false; self.parents.len()];
+        for &n in &self.order {
+            below[n] = n == root || self.parents[n].is_some_and(|p| below[p]);
+        }
+        below
+    }
+
     /// A skeleton from parents and rest transforms; `None` when the hierarchy has a cycle or a
     /// parent index out of range.
     pub fn new(
@@ -351,6 +360,22 @@ pub struct SkinnedMesh {
 }
 
 impl SkinnedMesh {
+    /// Each vertex's skin weight on the nodes `on` accepts.
+    pub fn weight_on(&self, on: impl Fn(usize) -> bool) -> Vec<f64> {
+        let k = self.per_vertex;
+        (0..self.positions.len())
+            .map(|v| {
+                let range = v * k..(v + 1) * k;
+                self.influence_joint[range.clone()]
+                    .iter()
+                    .zip(&self.influence_weight[range])
+                    .filter(|&(&j, _)| on(self.joints[j as usize]))
+                    .map(|(_, &w)| f64::from(w))
+                    .sum()
+            })
+            .collect()
+    }
+
     /// The skinning matrices Mⱼ = world(jointⱼ) · inverse_bindⱼ for the node world transforms
     /// `world`.
     pub fn joint_matrices(&self, world: &[DAffine3]) -> Vec<DAffine3> {

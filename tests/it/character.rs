@@ -498,3 +498,73 @@ fn smoothed_pins_stretch_no_more_than_the_skin_under_them() {
     assert!(own > 1.5 * skin, "pins {own}, skin {skin}");
     assert!(smoothed <= skin, "pins {smoothed}, skin {skin}");
 }
+
+/// `--body-exclude` with a joint of a one-mesh body's skin (CesiumMan's `#15`, a hand) leaves
+/// out the triangles whose three corners each carry more than half their weight on that joint
+/// and those below it: the collider has as many fewer triangles as an independent count by the
+/// gltf crate's reader (skin joints, node children, JOINTS_0/WEIGHTS_0, indices) finds. A name
+/// that is neither a body mesh nor a skin joint is an error naming the option.
+#[test]
+fn a_joint_leaves_its_part_of_a_one_mesh_body_out_of_the_collider() {
+    let rig = common::mesh_path("CesiumMan.glb");
+    let (doc, buffers, _) = common::gltf_read::import(&rig).unwrap();
+    // The nodes at and below #15.
+    let mut below = vec![false; doc.nodes().len()];
+    let mut stack = vec![15];
+    while let Some(n) = stack.pop() {
+        below[n] = true;
+        stack.extend(doc.nodes().nth(n).unwrap().children().map(|c| c.index()));
+    }
+    let node = doc.nodes().find(|n| n.skin().is_some()).unwrap();
+    let joints: Vec<usize> = node.skin().unwrap().joints().map(|j| j.index()).collect();
+    let (mut all, mut held) = (0, 0);
+    for prim in node.mesh().unwrap().primitives() {
+        let r = prim.reader(|b| Some(&buffers[b.index()]));
+        let j: Vec<[u16; 4]> = r.read_joints(0).unwrap().into_u16().collect();
+        let w: Vec<[f32; 4]> = r.read_weights(0).unwrap().into_f32().collect();
+        let on: Vec<bool> = j
+            .iter()
+            .zip(&w)
+            .map(|(j, w)| {
+                let total: f32 = w.iter().sum();
+                let part: f32 = (0..4)
+                    .filter(|&k| below[joints[j[k] as usize]])
+                    .map(|k| w[k])
+                    .sum();
+                part > 0.5 * total
+            })
+            .collect();
+        let idx: Vec<u32> = r.read_indices().unwrap().into_u32().collect();
+        for t in idx.chunks(3) {
+            all += 1;
+            held += usize::from(t.iter().all(|&v| on[v as usize]));
+        }
+    }
+    assert!(held > 20 && held < all / 10, "{held} of {all}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let sheet = dir.path().join("sheet.obj");
+    std::fs::write(
+        &sheet,
+        "v -0.3 0.1 0.2\nv 0.3 0.1 0.2\nv 0.3 0.1 0.4\nv -0.3 0.1 0.4\nf 1 3 2\nf 1 4 3\n",
+    )
+    .unwrap();
+    let job = |exclude: &[&str]| ClothJob {
+        input: Some(sheet.clone()),
+        output: dir.path().join("out.glb"),
+        rig: Some(rig.clone()),
+        fps: Some(2.0),
+        blend_in: 0.0,
+        warmup_cycles: 0,
+        body_exclude: exclude.iter().map(|s| s.to_string()).collect(),
+        ..ClothJob::default()
+    };
+    let triangles = |exclude: &[&str]| {
+        let report = bake_cloth(&job(exclude), &mut |_, _| {}).unwrap();
+        report.character.unwrap().body_triangles
+    };
+    assert_eq!(triangles(&[]), all);
+    assert_eq!(triangles(&["#15"]), all - held);
+    let err = bake_cloth(&job(&["#999"]), &mut |_, _| {}).unwrap_err();
+    assert_eq!(err.param(), Some(Param::BodyExclude), "{err}");
+}

@@ -14,7 +14,7 @@ use super::{
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::model::ClothModel;
 use crate::cloth::{FrameCache, SolverKind};
-use crate::data::animation::{Clip, SkinnedMesh};
+use crate::data::animation::{Clip, Skeleton, SkinnedMesh};
 use crate::error::{Error, ForParam, Result};
 use crate::export::character::{CharacterHost, CharacterOptions};
 use crate::export::morph::AnimatedBody;
@@ -104,7 +104,7 @@ pub fn bake_on_character(
     };
     // The USD layer holds the whole character's skinned meshes, whether they collide or not.
     let usd_bodies = (job.usd.is_some() && !job.garment_only).then(|| all_bodies.clone());
-    let bodies = exclude_bodies(&doc, all_bodies, &job.body_exclude)?;
+    let bodies = exclude_bodies(&doc, &skeleton, all_bodies, &job.body_exclude)?;
     let cycle = clip.duration();
     let fps = positive(job.fps.unwrap_or(super::defaults::FPS)).for_param(Param::Fps)?;
     // Whole frames per loop, so every loop starts on a frame: the bake's rate is adjusted to
@@ -426,11 +426,15 @@ fn skinned_frames(
         .collect()
 }
 
-/// The body meshes less those `exclude` names (a mesh name, or a node as `NAME`, `#N` or
-/// Blender's `Node_N`). A name that is no body mesh is an error listing the body meshes.
+/// The body meshes less what `exclude` names: a body mesh (a mesh name, or its node as `NAME`,
+/// `#N` or Blender's `Node_N`), or a joint of a body's skin, which leaves out the triangles of
+/// that body whose three corners each carry more than half their skin weight on the joint and
+/// the joints below it (a hand of a character made as one mesh; a body left with no triangle
+/// is left out whole). A name that is neither is an error listing the body meshes.
 fn exclude_bodies(
     doc: &RigDocument,
-    bodies: Vec<SkinnedMesh>,
+    skeleton: &Skeleton,
+    mut bodies: Vec<SkinnedMesh>,
     exclude: &[String],
 ) -> Result<Vec<SkinnedMesh>> {
     let mut drop = vec![false; bodies.len()];
@@ -443,12 +447,25 @@ fn exclude_bodies(
                 found = true;
             }
         }
+        if let Some(joint) = node.filter(|_| !found) {
+            let below = skeleton.subtree(joint);
+            for (d, b) in drop.iter_mut().zip(&mut bodies) {
+                if !b.joints.contains(&joint) {
+                    continue;
+                }
+                found = true;
+                let held = b.weight_on(|j| below[j]);
+                b.triangles
+                    .retain(|t| !t.iter().all(|&v| held[v as usize] > 0.5));
+                *d |= b.triangles.is_empty();
+            }
+        }
         if !found {
             let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
             return Err(Error::param_value(
                 Param::BodyExclude,
                 format!(
-                    "`{name}` names no body mesh of {} (its body meshes: {})",
+                    "`{name}` names no body mesh or skin joint of {} (its body meshes: {})",
                     doc.path.display(),
                     names.join(", ")
                 ),
