@@ -312,7 +312,7 @@ impl CharacterDrive {
     /// zero radius changes nothing. The pins keep their rest positions: every influence moves a
     /// point not at all in the rest pose.
     pub fn smooth_pins(&mut self, radius: f64) {
-        if !(radius > 0.0) || self.pins.len() < 2 {
+        if radius.is_nan() || radius <= 0.0 || self.pins.len() < 2 {
             return;
         }
         let reach = radius / self.scale;

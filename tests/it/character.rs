@@ -149,7 +149,7 @@ fn character_options_are_checked_before_baking() {
     assert_eq!(e.param(), Some(Param::BodyExclude));
     assert!(
         e.to_string().ends_with(
-            "`Tail` names no body mesh of {} (its body meshes: fox1)"
+            "`Tail` names no body mesh or skin joint of {} (its body meshes: fox1)"
                 .replace("{}", &common::mesh_path("Fox.glb").display().to_string())
                 .as_str()
         ),
