@@ -65,24 +65,19 @@ pub fn bake_on_character(
         return Err(Error::param_value(Param::Cycles, "0: must be at least 1"));
     }
     let rig_scale = positive(job.rig_scale).for_param(Param::RigScale)?;
-    if !(job.blend_in.is_finite() && job.blend_in >= 0.0) {
-        return Err(Error::param_value(
-            Param::BlendIn,
-            format!(
-                "{}: must be zero or a positive number of seconds",
-                job.blend_in
-            ),
-        ));
-    }
-    if !(job.pin_smooth.is_finite() && job.pin_smooth >= 0.0) {
-        return Err(Error::param_value(
-            Param::PinSmooth,
-            format!(
-                "{}: must be zero or a positive number of metres",
-                job.pin_smooth
-            ),
-        ));
-    }
+    // A duration and a distance, each zero or more.
+    let at_least_zero = |value: f64, param: Param, unit: &str| {
+        if value.is_finite() && value >= 0.0 {
+            Ok(())
+        } else {
+            Err(Error::param_value(
+                param,
+                format!("{value}: must be zero or a positive number of {unit}"),
+            ))
+        }
+    };
+    at_least_zero(job.blend_in, Param::BlendIn, "seconds")?;
+    at_least_zero(job.pin_smooth, Param::PinSmooth, "metres")?;
     check_export_options(job)?;
 
     let doc = RigDocument::load(&rig_path)?;

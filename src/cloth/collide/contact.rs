@@ -1250,50 +1250,47 @@ mod tests {
         assert!(!fold.is_closed() && fold.parts().is_empty());
         let thickness = 0.01;
         let (sys, mut contact, mut x) = barrier_on(Collider::Mesh(Arc::clone(&fold)), thickness);
+        let c = barrier_strength(sys.mass[0]);
+        // At each (a, b) of `at` (its distances from the wall and the floor), particle 0's
+        // energy is the sum of both faces' barriers in a band of `layer`.
+        let sums_both =
+            |contact: &mut NewtonContact, x: &mut [DVec3], layer: f64, at: &[(f64, f64)]| {
+                let (lo, width) = barrier_band(layer);
+                let barrier = |d: f64| c * width * barrier_shape((d - lo) / width).0;
+                for &(a, b) in at {
+                    x[0] = DVec3::new(a, b, 0.5);
+                    contact.set_iterate(x);
+                    let expected = barrier(a) + if b < lo + width { barrier(b) } else { 0.0 };
+                    let energy = contact.energy(x);
+                    assert!(
+                    (energy - expected).abs() <= 1e-9 * expected,
+                    "layer {layer}, at ({a}, {b}): {energy} J, the two faces' barriers {expected} J"
+                );
+                }
+            };
         // It starts the step clear of both faces, then moves into the fold.
         x[0] = DVec3::new(0.05, 0.05, 0.5);
         contact.begin_step(&x);
-        let (lo, width) = barrier_band(thickness);
-        let c = barrier_strength(sys.mass[0]);
-        let barrier = |d: f64| c * width * barrier_shape((d - lo) / width).0;
-        for (a, b) in [
+        let at = [
             (0.008, 0.008),
             (0.007, 0.0095),
             (0.0095, 0.007),
             (0.006, 0.02),
-        ] {
-            x[0] = DVec3::new(a, b, 0.5);
-            contact.set_iterate(&x);
-            let expected = barrier(a) + if b < lo + width { barrier(b) } else { 0.0 };
-            let energy = contact.energy(&x);
-            assert!(
-                (energy - expected).abs() <= 1e-9 * expected,
-                "at ({a}, {b}): {energy} J, the two faces' barriers {expected} J"
-            );
-        }
+        ];
+        sums_both(&mut contact, &mut x, thickness, &at);
 
         // A particle that starts the step 4 mm from both faces, closer than the thickness: its
         // layer thins to 4 mm, and in the fold it still feels both faces, in the thinner band.
         let (_, mut contact, mut x) = barrier_on(Collider::Mesh(fold), thickness);
         x[0] = DVec3::new(0.004, 0.004, 0.5);
         contact.begin_step(&x);
-        let (lo, width) = barrier_band(0.004);
-        let barrier = |d: f64| c * width * barrier_shape((d - lo) / width).0;
-        for (a, b) in [
+        let at = [
             (0.003, 0.003),
             (0.0025, 0.0045),
             (0.0045, 0.0022),
             (0.0024, 0.02),
-        ] {
-            x[0] = DVec3::new(a, b, 0.5);
-            contact.set_iterate(&x);
-            let expected = barrier(a) + if b < lo + width { barrier(b) } else { 0.0 };
-            let energy = contact.energy(&x);
-            assert!(
-                (energy - expected).abs() <= 1e-9 * expected,
-                "thinned, at ({a}, {b}): {energy} J, the two faces' barriers {expected} J"
-            );
-        }
+        ];
+        sums_both(&mut contact, &mut x, 0.004, &at);
     }
 
     /// Each collider carries a particle as its nearest part moves: a particle resting on a still
