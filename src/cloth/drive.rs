@@ -304,12 +304,12 @@ impl CharacterDrive {
         Ok(())
     }
 
-    /// Averages the surface-bound pins' influences over their neighbourhoods: each pin takes the
-    /// mean of the influences of the pins within `radius` metres of it at rest, weighted by a
-    /// Gaussian of standard deviation `radius` / 2, so that two neighbouring pins move almost
-    /// alike even where the skin weights under them change abruptly (a band pinned across the
-    /// hips and a thigh, or the torso and an arm). Pins bound to one joint stay as they are; a
-    /// zero radius changes nothing. The pins keep their rest positions: every influence moves a
+    /// Averages the pins' influences (as [`Self::bind_to_surface`] bound them) over their
+    /// neighbourhoods: each pin takes the mean of the influences of the pins within `radius`
+    /// metres of it at rest, weighted by a Gaussian of standard deviation `radius` / 2, so that
+    /// two neighbouring pins move almost alike even where the skin weights under them change
+    /// abruptly (a band pinned across the hips and a thigh, or the torso and an arm). A zero
+    /// radius changes nothing. The pins keep their rest positions: every influence moves a
     /// point not at all in the rest pose.
     pub fn smooth_pins(&mut self, radius: f64) {
         if radius.is_nan() || radius <= 0.0 || self.pins.len() < 2 {

@@ -106,9 +106,9 @@ pub mod defaults {
     pub const WARMUP_CYCLES: usize = 1;
     /// Seconds of blending from a rig's rest pose into its animation.
     pub const BLEND_IN: f64 = 0.5;
-    /// `--pin-smooth`, metres: on a cape pinned across CesiumMan's shoulders it brings the worst
-    /// edge between two pins from 222 % stretched to 25 % compressed over the walk, where the
-    /// body's own skin near them stretches 66 % (docs/characters.md).
+    /// `--pin-smooth`, metres: on a cape pinned across CesiumMan's back at shoulder height it
+    /// brings the worst edge between two pins from 222 % to 15 % stretch over the walk, where
+    /// the body's own skin near them stretches 74 % (docs/characters.md).
     pub const PIN_SMOOTH: f64 = 0.1;
 }
 

@@ -1263,9 +1263,9 @@ mod tests {
                     let expected = barrier(a) + if b < lo + width { barrier(b) } else { 0.0 };
                     let energy = contact.energy(x);
                     assert!(
-                    (energy - expected).abs() <= 1e-9 * expected,
-                    "layer {layer}, at ({a}, {b}): {energy} J, the two faces' barriers {expected} J"
-                );
+                        (energy - expected).abs() <= 1e-9 * expected,
+                        "layer {layer}, at ({a}, {b}): {energy} J, both faces' {expected} J"
+                    );
                 }
             };
         // It starts the step clear of both faces, then moves into the fold.
