@@ -568,3 +568,86 @@ fn a_joint_leaves_its_part_of_a_one_mesh_body_out_of_the_collider() {
     let err = bake_cloth(&job(&["#999"]), &mut |_, _| {}).unwrap_err();
     assert_eq!(err.param(), Some(Param::BodyExclude), "{err}");
 }
+
+/// The report's `character.pin_strain` is the worst stretch of an edge between two pins over
+/// the written frames, as the drive itself puts the pins (evaluated here at each written frame's
+/// time, not read from the bake's cache), and past the strain limit it is a warning naming
+/// `--pin-smooth`: a cape's top edge across CesiumMan's back on its own weights; with the
+/// default averaging it stays below the limit and unwarned.
+#[test]
+fn the_pins_own_stretch_is_reported_and_warned_past_the_limit() {
+    use glam::DVec3;
+    use scenebake::cloth::drive::CharacterDrive;
+    use scenebake::io::rig::RigDocument;
+
+    let dir = tempfile::tempdir().unwrap();
+    let cape = dir.path().join("cape.obj");
+    let status = Command::new("python3")
+        .arg(common::crate_dir().join("scripts/make_cesium_cape.py"))
+        .args(["--n", "11", "--out"])
+        .arg(&cape)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let rig = common::mesh_path("CesiumMan.glb");
+    let fps = 10.0;
+    let job = |smooth: f64| ClothJob {
+        input: Some(cape.clone()),
+        output: dir.path().join("cape.glb"),
+        rig: Some(rig.clone()),
+        fps: Some(fps),
+        blend_in: 0.0,
+        warmup_cycles: 0,
+        body_collider: Switch::Off,
+        pin_smooth: smooth,
+        pin: vec!["box:-1,1.099,-1,1,1.101,1".parse::<PinSpec>().unwrap()],
+        ..ClothJob::default()
+    };
+    let bake = |smooth: f64| {
+        let r = bake_cloth(&job(smooth), &mut |_, _| {}).unwrap();
+        let warned = r
+            .warnings
+            .iter()
+            .any(|w| w.to_string().contains("the pins alone stretch"));
+        (r.character.unwrap().pin_strain.unwrap(), warned)
+    };
+
+    // The pins' own motion, through the drive: the top row of the 11 × 11 sheet, 3 cm apart.
+    let doc = RigDocument::load(&rig).unwrap();
+    let mut drive = CharacterDrive::new(
+        doc.skeleton().unwrap(),
+        doc.clip("#0").unwrap(),
+        doc.body_meshes().unwrap(),
+        1.0,
+        0.0,
+    )
+    .unwrap();
+    let band: Vec<DVec3> = (0..11)
+        .map(|i| DVec3::new(-0.12, 1.1, -0.15 + 0.03 * f64::from(i)))
+        .collect();
+    drive
+        .bind_to_surface(&(0..11).collect::<Vec<u32>>(), &band)
+        .unwrap();
+    let frames = (drive.cycle() * fps).round() as usize;
+    let mut worst = (f64::NEG_INFINITY, 0);
+    for f in 0..=frames {
+        let pins = drive.pose(f as f64 / fps).pins;
+        for i in 0..10 {
+            let s = pins[i].distance(pins[i + 1]) / band[i].distance(band[i + 1]) - 1.0;
+            if s > worst.0 {
+                worst = (s, f);
+            }
+        }
+    }
+
+    let (own, warned) = bake(0.0);
+    assert!(warned, "no warning at {own:?}");
+    assert!(
+        (own.strain - worst.0).abs() < 1e-4,
+        "{own:?}, the drive's {worst:?}"
+    );
+    assert_eq!(own.frame, worst.1);
+    assert!(own.strain > 0.5, "{own:?}");
+    let (smoothed, warned) = bake(scenebake::bake::cloth::defaults::PIN_SMOOTH);
+    assert!(smoothed.strain < 0.2 && !warned, "{smoothed:?}");
+}
