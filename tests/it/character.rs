@@ -701,6 +701,14 @@ fn a_skirt_walks_on_cesium_man_with_its_forearms_left_out() {
     );
     let pinched: usize = r.environment.as_ref().unwrap().pinched.iter().sum();
     assert_eq!(pinched, 0);
+    // Nothing pinched: no hint to leave more of the body out.
+    assert!(
+        !r.warnings
+            .iter()
+            .any(|w| w.to_string().contains("closes on another")),
+        "{:?}",
+        r.warnings
+    );
     let q = &r.quality;
     let stretch = q.max_strain.iter().copied().fold(0.0, f64::max);
     let squeeze = q.min_strain.iter().copied().fold(0.0, f64::min);

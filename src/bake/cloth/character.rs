@@ -268,6 +268,14 @@ pub fn bake_on_character(
             Param::WarmupCycles
         ));
     }
+    if job.body_collider == Switch::On && sim.frames.iter().any(|f| f.pinched > 0) {
+        out.warnings.push(text!(
+            "where a part of the body closes on another through the garment (an arm on the \
+             hips, thighs meeting), ",
+            Param::BodyExclude,
+            " with a joint of the skin leaves out the part it and the joints below it move"
+        ));
+    }
     if let Some(worst) = pin_strain.filter(|s| s.strain > job.strain_limit) {
         out.warnings.push(text!(
             format!(
