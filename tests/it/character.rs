@@ -437,22 +437,36 @@ fn the_robot_skirt_walks() {
     assert!(out.exists());
 }
 
+/// CesiumMan's walk as a drive (metres, no blend-in), no pin bound yet.
+fn cesium_walk() -> scenebake::cloth::drive::CharacterDrive {
+    let doc = scenebake::io::rig::RigDocument::load(&common::mesh_path("CesiumMan.glb")).unwrap();
+    let (skeleton, clip) = (doc.skeleton().unwrap(), doc.clip("#0").unwrap());
+    let bodies = doc.body_meshes().unwrap();
+    scenebake::cloth::drive::CharacterDrive::new(skeleton, clip, bodies, 1.0, 0.0).unwrap()
+}
+
+/// Writes `out` with `python3 scripts/SCRIPT ARGS --out OUT`.
+fn write_by_script(script: &str, args: &[&str], out: &Path) {
+    let status = Command::new("python3")
+        .arg(common::crate_dir().join("scripts").join(script))
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .status()
+        .unwrap();
+    assert!(status.success(), "{script} failed");
+}
+
 /// A band of 31 pins 1 cm apart across CesiumMan's back at shoulder height (the top edge of a
 /// cape): bound each to the skin weights under it, two neighbours move apart over the walk far
-/// more than the body's own skin near them stretches (the weights under the band change from
-/// the torso's to an arm's within a few centimetres); with the weights smoothed over the band
+/// more than the body's own skin near them stretches; with the weights smoothed over the band
 /// (`--pin-smooth`'s default) no pair stretches more than that skin does.
 #[test]
 fn smoothed_pins_stretch_no_more_than_the_skin_under_them() {
     use glam::DVec3;
     use scenebake::bake::cloth::defaults;
-    use scenebake::cloth::drive::CharacterDrive;
-    use scenebake::io::rig::RigDocument;
 
-    let doc = RigDocument::load(&common::mesh_path("CesiumMan.glb")).unwrap();
-    let (skeleton, clip) = (doc.skeleton().unwrap(), doc.clip("#0").unwrap());
-    let bodies = doc.body_meshes().unwrap();
-    let drive = CharacterDrive::new(skeleton, clip, bodies, 1.0, 0.0).unwrap();
+    let drive = cesium_walk();
     let band: Vec<DVec3> = (0..31)
         .map(|i| DVec3::new(-0.12, 1.1, -0.15 + 0.01 * f64::from(i)))
         .collect();
@@ -577,18 +591,10 @@ fn a_joint_leaves_its_part_of_a_one_mesh_body_out_of_the_collider() {
 #[test]
 fn the_pins_own_stretch_is_reported_and_warned_past_the_limit() {
     use glam::DVec3;
-    use scenebake::cloth::drive::CharacterDrive;
-    use scenebake::io::rig::RigDocument;
 
     let dir = tempfile::tempdir().unwrap();
     let cape = dir.path().join("cape.obj");
-    let status = Command::new("python3")
-        .arg(common::crate_dir().join("scripts/make_cesium_cape.py"))
-        .args(["--n", "11", "--out"])
-        .arg(&cape)
-        .status()
-        .unwrap();
-    assert!(status.success());
+    write_by_script("make_cesium_cape.py", &["--n", "11"], &cape);
     let rig = common::mesh_path("CesiumMan.glb");
     let fps = 10.0;
     let job = |smooth: f64| ClothJob {
@@ -613,15 +619,7 @@ fn the_pins_own_stretch_is_reported_and_warned_past_the_limit() {
     };
 
     // The pins' own motion, through the drive: the top row of the 11 × 11 sheet, 3 cm apart.
-    let doc = RigDocument::load(&rig).unwrap();
-    let mut drive = CharacterDrive::new(
-        doc.skeleton().unwrap(),
-        doc.clip("#0").unwrap(),
-        doc.body_meshes().unwrap(),
-        1.0,
-        0.0,
-    )
-    .unwrap();
+    let mut drive = cesium_walk();
     let band: Vec<DVec3> = (0..11)
         .map(|i| DVec3::new(-0.12, 1.1, -0.15 + 0.03 * f64::from(i)))
         .collect();
@@ -661,29 +659,10 @@ fn the_pins_own_stretch_is_reported_and_warned_past_the_limit() {
 fn a_skirt_walks_on_cesium_man_with_its_forearms_left_out() {
     let dir = tempfile::tempdir().unwrap();
     let skirt = dir.path().join("skirt.obj");
-    let status = Command::new("python3")
-        .arg(common::crate_dir().join("scripts/make_skirt.py"))
-        .args([
-            "--vertices",
-            "1500",
-            "--seed",
-            "12",
-            "--waist-radius",
-            "0.15",
-        ])
-        .args([
-            "--waist-y",
-            "0.70",
-            "--hem-radius",
-            "0.27",
-            "--hem-y",
-            "0.50",
-            "--out",
-        ])
-        .arg(&skirt)
-        .status()
-        .unwrap();
-    assert!(status.success());
+    let args = "--vertices 1500 --seed 12 --waist-radius 0.15 --waist-y 0.70 --hem-radius 0.27 \
+                --hem-y 0.50";
+    let args: Vec<&str> = args.split_whitespace().collect();
+    write_by_script("make_skirt.py", &args, &skirt);
     let job = ClothJob {
         input: Some(skirt),
         output: dir.path().join("skirt.glb"),

@@ -316,9 +316,7 @@ impl NewtonContact {
         for (i, p) in x.iter_mut().enumerate() {
             let mut feasible = false;
             for _ in 0..ROUNDS {
-                let mut deepest = f64::INFINITY;
-                feasible = self.barrier_contacts(i, *p, |_, _, u, _| deepest = deepest.min(u))
-                    && deepest > START_DEPTH;
+                feasible = self.deepest(i, *p).is_some_and(|u| u > START_DEPTH);
                 if feasible {
                     break;
                 }
@@ -359,6 +357,14 @@ impl NewtonContact {
             self.pinched += usize::from(pinched);
         }
         behind
+    }
+
+    /// The least depth u of particle `i` at `p` into any of its barrier bands (infinite in
+    /// none); `None` where `p` is infeasible (see [`NewtonContact::barrier_contacts`]).
+    fn deepest(&self, i: usize, p: DVec3) -> Option<f64> {
+        let mut deepest = f64::INFINITY;
+        self.barrier_contacts(i, p, |_, _, u, _| deepest = deepest.min(u))
+            .then_some(deepest)
     }
 
     /// Particles released in this step, pinched behind a moving body's surface
@@ -1132,8 +1138,7 @@ mod tests {
             x[0] = DVec3::new(0.0, y, 0.0);
             contact.begin_step(&x);
             assert_eq!(contact.make_feasible(&mut x, false), 0);
-            let mut deepest = f64::INFINITY;
-            assert!(contact.barrier_contacts(0, x[0], |_, _, u, _| deepest = deepest.min(u)));
+            let deepest = contact.deepest(0, x[0]).expect("feasible");
             assert!(deepest > 1e-3, "from u = {depth}: at u = {deepest}");
             if depth > 1e-3 {
                 assert_eq!(x[0].y, y, "left as it is");
