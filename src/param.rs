@@ -172,6 +172,8 @@ params! {
     PinTo => "pin_to",
     /// How far the pins' skin weights are averaged.
     PinSmooth => "pin_smooth",
+    /// How long the end of a character's written loop is cross-faded.
+    LoopBlend => "loop_blend",
     /// Whether the character's body is a collider.
     BodyCollider => "body_collider",
     /// Body meshes the garment ignores.

@@ -192,6 +192,32 @@ pub struct BakeParams {
     /// The first frame whose strain and crossings are measured ([`Simulation::quality`]): the
     /// frames before it are simulated but not written (a character's blend-in and warm-up).
     pub measure_from: usize,
+    /// Steers the bake's last frames onto the frames one span earlier, so that it ends where the
+    /// span began (a character's written loops joined up, `--loop-blend`); `None`: no steering.
+    pub loop_closure: Option<LoopClosure>,
+}
+
+/// The last `frames` frames of a bake steered onto the frames `span` before them: before the
+/// steps into frame k, the cloth's positions and velocities are moved a fraction β of the way to
+/// those it had at frame k − 1 − span (the velocity from the two cached frames there), β rising
+/// smoothly (3s² − 2s³) over the `frames` to 1 before the last frame's steps; each step is then
+/// solved as any other (to the tolerance, with every contact), so the solver, not a
+/// cross-fade, carries the cloth onto the earlier frames' path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoopClosure {
+    /// Frames steered (the last of the bake).
+    pub frames: usize,
+    /// How many frames earlier their targets are: the written loops' length.
+    pub span: usize,
+}
+
+impl LoopClosure {
+    /// The fraction of the way to its target the state before frame `frame`'s steps is moved,
+    /// for a bake of `last` frames (0 before the steered frames).
+    pub fn weight(&self, frame: usize, last: usize) -> f64 {
+        let s = (frame + self.frames).saturating_sub(last) as f64 / self.frames.max(1) as f64;
+        s * s * (3.0 - 2.0 * s)
+    }
 }
 
 impl BakeParams {
@@ -362,6 +388,21 @@ pub fn simulate_driven(
     for frame in 1..=params.frames {
         let threads = params.threads.now();
         solver.set_threads(threads);
+        if let Some(closure) = params.loop_closure {
+            let beta = closure.weight(frame, params.frames);
+            if beta > 0.0 {
+                steer(
+                    solver.system(),
+                    &cache,
+                    frame - 1 - closure.span,
+                    params.fps,
+                    beta,
+                    &mut x,
+                    &mut v,
+                );
+                solver.system().scatter(&x, &mut all);
+            }
+        }
         let mut stats: Option<StepStats> = None;
         for substep in 0..params.substeps {
             let step = ((frame - 1) * params.substeps + substep) as u64;
@@ -412,6 +453,27 @@ pub fn simulate_driven(
         measured_from: measure_from,
         seconds_measure,
     })
+}
+
+/// Moves the free particles' positions `x` and velocities `v` (solver order) the fraction `beta`
+/// of the way to the state of `cache`'s frame `target`: its positions, and the velocity from
+/// the frame before it to it at `fps` (zero at frame 0). See [`LoopClosure`].
+fn steer(
+    sys: &ReducedSystem,
+    cache: &FrameCache,
+    target: usize,
+    fps: f64,
+    beta: f64,
+    x: &mut [DVec3],
+    v: &mut [DVec3],
+) {
+    let now = cache.frame(target);
+    let before = cache.frame(target.saturating_sub(1));
+    for ((x, v), &p) in x.iter_mut().zip(v.iter_mut()).zip(&sys.particle_of) {
+        let (p1, p0) = (now[p as usize].as_dvec3(), before[p as usize].as_dvec3());
+        *x = *x * (1.0 - beta) + p1 * beta;
+        *v = *v * (1.0 - beta) + (p1 - p0) * (fps * beta);
+    }
 }
 
 /// What a bake's steps move: the solver, what drives it, and the cloth's state.

@@ -695,3 +695,80 @@ fn a_skirt_walks_on_cesium_man_with_its_forearms_left_out() {
     let body = q.body_crossings.iter().max().unwrap();
     assert!(*body <= 10, "{body} pairs cross the body");
 }
+
+/// `--loop-blend` joins the written loop up through the solver: the CesiumMan cape baked with one
+/// warm-up loop and its last quarter-second steered is, frame for frame, the same bake's second
+/// loop up to the steered frames, its last frame lands on its first, where unsteered it ends
+/// centimetres away, and the report's figures are those of the frames read back from the point
+/// cache.
+#[test]
+fn a_blended_loop_ends_where_it_began() {
+    use crate::cloth_pointcache::read_pc2;
+
+    let dir = tempfile::tempdir().unwrap();
+    let cape = dir.path().join("cape.obj");
+    write_by_script("make_cesium_cape.py", &["--n", "11"], &cape);
+    let job = |name: &str, warmup_cycles: usize, cycles: usize, blend: Option<f64>| ClothJob {
+        input: Some(cape.clone()),
+        output: dir.path().join(format!("{name}.glb")),
+        pc2: Some(dir.path().join(format!("{name}.pc2"))),
+        rig: Some(common::mesh_path("CesiumMan.glb")),
+        fps: Some(10.0),
+        blend_in: 0.0,
+        warmup_cycles,
+        cycles,
+        loop_blend: blend,
+        body_collider: Switch::Off,
+        threads: Some(1),
+        pin: vec!["box:-1,1.099,-1,1,1.101,1".parse::<PinSpec>().unwrap()],
+        ..ClothJob::default()
+    };
+    // Two loops written as simulated (no warm-up loop to steer onto), and the same simulation
+    // writing its second loop, its last 0.3 s steered onto the first.
+    let free = bake_cloth(&job("free", 0, 2, None), &mut |_, _| {}).unwrap();
+    assert!(free.character.as_ref().unwrap().loop_blend.is_none());
+    let joined = bake_cloth(&job("joined", 1, 1, Some(0.3)), &mut |_, _| {}).unwrap();
+    let a = read_pc2(&dir.path().join("free.pc2")).samples;
+    let b = read_pc2(&dir.path().join("joined.pc2")).samples;
+    let span = b.len() - 1;
+    assert_eq!(a.len(), 2 * span + 1);
+    let far = |p: &[scenebake::glam::Vec3], q: &[scenebake::glam::Vec3]| {
+        p.iter()
+            .zip(q)
+            .map(|(p, q)| f64::from(p.distance(*q)))
+            .fold(0.0, f64::max)
+    };
+
+    let c = joined.character.as_ref().unwrap();
+    let blend = c.loop_blend.unwrap();
+    assert_eq!(blend.frames, 3);
+    assert!(
+        joined.unconverged_frames.is_empty(),
+        "{:?}",
+        joined.unconverged_frames
+    );
+    // Untouched up to the steered frames: bit for bit the free bake's second loop.
+    for j in 0..=span - blend.frames {
+        assert_eq!(b[j], a[span + j], "frame {j}");
+    }
+    // Steered: the frames differ from the free bake's, and the loop closes.
+    assert!(far(&b[span - 1], &a[2 * span - 1]) > 1e-4);
+    let seam = far(&b[span], &b[0]);
+    let free_seam = far(&a[2 * span], &a[span]);
+    assert!(
+        seam < 1e-4 && free_seam > 100.0 * seam,
+        "{seam} against {free_seam}"
+    );
+    assert!(
+        (c.loop_seam - seam).abs() < 1e-9,
+        "{} against {seam}",
+        c.loop_seam
+    );
+    // Where the steering began, the two loops' frames were the report's gap apart.
+    let gap = far(&a[2 * span - blend.frames], &a[span - blend.frames]);
+    assert!(
+        (blend.gap - gap).abs() < 1e-9,
+        "{} against {gap}",
+        blend.gap
+    );
+}

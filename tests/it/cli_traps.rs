@@ -88,6 +88,46 @@ fn a_pin_smoothing_radius_must_be_a_distance() {
     }
 }
 
+/// `--loop-blend` is a duration within the loops: a negative or non-finite one, one longer than
+/// the written loops, or one reaching back before the warm-up loops is refused, naming the
+/// option (and the warm-up loops where more would do), before anything is simulated or written.
+#[test]
+fn a_loop_blend_must_fit_the_loops() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = s(&crate_path("meshes/garments/fox_cape.obj"));
+    let glb = s(&crate_path("meshes/Fox.glb"));
+    let fox = [
+        "cloth",
+        &obj,
+        "--rig",
+        &glb,
+        "--animation",
+        "Walk",
+        "--rig-scale",
+        "0.01",
+        "-o",
+        "x.glb",
+    ];
+    for (bad, shown) in [("-0.1", "-0.1"), ("nan", "NaN"), ("inf", "inf")] {
+        fails_exactly(
+            dir.path(),
+            &[&fox[..], &[&format!("--loop-blend={bad}")]].concat(),
+            &format!("error: invalid value for --loop-blend: {shown}: must be zero or a positive number of seconds"),
+        );
+    }
+    // Fox's Walk is 0.708 s: 21 frames a loop at 30 fps.
+    fails_exactly(
+        dir.path(),
+        &[&fox[..], &["--loop-blend", "2"]].concat(),
+        "error: invalid value for --loop-blend: 2 s: 59 frames at 29.647 fps, longer than the written loops (21 frames)",
+    );
+    fails_exactly(
+        dir.path(),
+        &[&fox[..], &["--loop-blend", "0.2", "--warmup-cycles", "0"]].concat(),
+        "error: invalid value for --loop-blend: 0.2 s: the last 6 written frames are steered onto the 6 frames before the written loops, but only 0 warm-up frames precede them; raise --warmup-cycles",
+    );
+}
+
 /// The triangle membrane is a fabric model of Newton's: with the fast solver, the labs'
 /// springs or their preset it is an error naming the option, before anything is written.
 #[test]

@@ -121,6 +121,7 @@ fn particle_on_a_slope_obeys_coulomb() {
                 linear_solver: Default::default(),
                 self_contact: None,
                 measure_from: 0,
+                loop_closure: None,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(normal, 0.0).unwrap())],
                     thickness,
@@ -207,6 +208,7 @@ fn newton_keeps_a_particle_starting_inside_the_thickness_where_it_started() {
                 linear_solver: Default::default(),
                 self_contact: None,
                 measure_from: 0,
+                loop_closure: None,
                 colliders: Colliders {
                     shapes: vec![Collider::Plane(HalfSpace::new(DVec3::Y, 0.0).unwrap())],
                     thickness,

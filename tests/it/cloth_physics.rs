@@ -25,6 +25,7 @@ fn params(solver: SolverKind, damping: f64, gravity: DVec3) -> BakeParams {
         colliders: Default::default(),
         self_contact: None,
         measure_from: 0,
+        loop_closure: None,
         wind: None,
     }
 }

@@ -23,10 +23,10 @@ use scenebake::glam::{DVec3, Vec3};
 const UNUSED: usize = 10;
 
 /// A PC2 file: start frame, sample rate, and each sample's points.
-struct Pc2 {
-    start: f32,
-    sampling: f32,
-    samples: Vec<Vec<Vec3>>,
+pub(crate) struct Pc2 {
+    pub start: f32,
+    pub sampling: f32,
+    pub samples: Vec<Vec<Vec3>>,
 }
 
 fn le_i32(b: &[u8], at: usize) -> i32 {
@@ -47,7 +47,7 @@ fn be_f32(b: &[u8], at: usize) -> f32 {
 
 /// PC2: "POINTCACHE2\0", int32 version 1, int32 points, float32 start frame, float32 sample
 /// rate, int32 samples, then float32 x, y, z per point per sample; little-endian.
-fn read_pc2(path: &Path) -> Pc2 {
+pub(crate) fn read_pc2(path: &Path) -> Pc2 {
     let b = std::fs::read(path).unwrap();
     assert_eq!(&b[..12], b"POINTCACHE2\0", "signature");
     assert_eq!(le_i32(&b, 12), 1, "version");

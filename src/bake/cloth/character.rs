@@ -8,8 +8,8 @@ use std::time::Instant;
 
 use super::{
     check_export_options, export, length_words, prepare_cloth, quality_report, report,
-    scaled_words, simulate_on_body, CharacterReport, ClothJob, ClothReport, Host, PinStrain,
-    PreparedCloth, Switch,
+    scaled_words, simulate_on_body, CharacterReport, ClothJob, ClothReport, Host, LoopBlend,
+    PinStrain, PreparedCloth, Switch,
 };
 use crate::cloth::drive::CharacterDrive;
 use crate::cloth::model::ClothModel;
@@ -78,6 +78,9 @@ pub fn bake_on_character(
     };
     at_least_zero(job.blend_in, Param::BlendIn, "seconds")?;
     at_least_zero(job.pin_smooth, Param::PinSmooth, "metres")?;
+    if let Some(seconds) = job.loop_blend {
+        at_least_zero(seconds, Param::LoopBlend, "seconds")?;
+    }
     check_export_options(job)?;
 
     let doc = RigDocument::load(&rig_path)?;
@@ -109,6 +112,7 @@ pub fn bake_on_character(
     let blend_frames = (job.blend_in * fps).ceil() as usize;
     let first_written = blend_frames + job.warmup_cycles * frames_per_cycle;
     let total = first_written + job.cycles * frames_per_cycle;
+    let loop_blend = blended_frames(job, fps, frames_per_cycle)?;
 
     let sized = ClothJob {
         frames: Some(total),
@@ -118,6 +122,10 @@ pub fn bake_on_character(
     let mut prepared = prepare_cloth(&sized)?;
     // Only the written loops are measured (and reported).
     prepared.params.measure_from = first_written;
+    prepared.params.loop_closure = (loop_blend > 0).then_some(crate::cloth::LoopClosure {
+        frames: loop_blend,
+        span: total - first_written,
+    });
     check_units(
         &prepared.model.mesh,
         character_diagonal,
@@ -192,7 +200,6 @@ pub fn bake_on_character(
 
     // The written loops: frames first_written..=total, as frames 0.. of the output.
     let mut cache = FrameCache::new(sim.cache.particle_count());
-    let mut seam = 0.0f64;
     let mut buffer = Vec::new();
     for k in first_written..=total {
         buffer.clear();
@@ -200,10 +207,16 @@ pub fn bake_on_character(
         cache.push(&buffer);
     }
     let pin_strain = pin_strain(model, &cache);
-    let (first, last) = (sim.cache.frame(first_written), sim.cache.frame(total));
-    for (a, b) in first.iter().zip(last) {
-        seam = seam.max(f64::from(a.distance(*b)));
-    }
+    let seam = seam_between(sim.cache.frame(first_written), sim.cache.frame(total));
+    // Where the steering began: how far the loop was from joining up there.
+    let blend = (loop_blend > 0).then(|| LoopBlend {
+        frames: loop_blend,
+        gap: seam_between(
+            sim.cache
+                .frame(total - loop_blend - (total - first_written)),
+            sim.cache.frame(total - loop_blend),
+        ),
+    });
 
     let export_start = Instant::now();
     let name = job.display_name();
@@ -265,7 +278,9 @@ pub fn bake_on_character(
                 seam * 1e3,
                 SEAM_WARNING * 1e3
             ),
-            Param::WarmupCycles
+            Param::WarmupCycles,
+            " or ",
+            Param::LoopBlend
         ));
     }
     if job.body_collider == Switch::On && sim.frames.iter().any(|f| f.pinched > 0) {
@@ -302,11 +317,60 @@ pub fn bake_on_character(
         pins_on_joint: on_joint,
         body_triangles,
         loop_seam: seam,
+        loop_blend: blend,
         pin_strain,
     });
     out.warnings
         .extend(rig_warnings.into_iter().map(|w| text!(w)));
     Ok(out)
+}
+
+/// How many written frames `--loop-blend` steers at `fps` (at least one when asked, 0 when
+/// not), checked against the loops: the steered frames lie within the written loops, and the
+/// frames they are steered onto, one written span earlier, within the animation (in the warm-up
+/// loops, not the blend-in from the rest pose). By default a quarter of the written loops, or
+/// as many frames as the warm-up loops have where they have fewer.
+fn blended_frames(job: &ClothJob, fps: f64, frames_per_cycle: usize) -> Result<usize> {
+    let written = job.cycles * frames_per_cycle;
+    let warmup = job.warmup_cycles * frames_per_cycle;
+    let Some(seconds) = job.loop_blend else {
+        return Ok((written / 4).min(warmup));
+    };
+    if seconds == 0.0 {
+        return Ok(0);
+    }
+    let frames = ((seconds * fps).round() as usize).max(1);
+    if frames > written {
+        return Err(Error::param_value(
+            Param::LoopBlend,
+            format!(
+                "{seconds} s: {frames} frames at {fps:.3} fps, longer than the written loops \
+                 ({written} frames)"
+            ),
+        ));
+    }
+    if frames > warmup {
+        return Err(Error::param_value(
+            Param::LoopBlend,
+            text!(
+                format!(
+                    "{seconds} s: the last {frames} written frames are steered onto the {frames} \
+                     frames before the written loops, but only {warmup} warm-up frames precede \
+                     them; raise "
+                ),
+                Param::WarmupCycles
+            ),
+        ));
+    }
+    Ok(frames)
+}
+
+/// The largest distance between a particle's positions in two frames, metres.
+fn seam_between(a: &[glam::Vec3], b: &[glam::Vec3]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| f64::from(a.distance(*b)))
+        .fold(0.0, f64::max)
 }
 
 /// The edge between two pinned particles stretched most, over the written frames of `cache`,

@@ -440,6 +440,16 @@ pub struct ClothJob {
     /// animation's first pose, simulated and discarded first.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = defaults::BLEND_IN, value_name = "S", help_heading = "Character"))]
     pub blend_in: f64,
+    /// Seconds at the end of the written loops over which the solver steers the cloth onto its
+    /// path one written span earlier (the last warm-up loop's), so the output loops without a
+    /// jump where the motion itself does not settle into a loop; 0 writes the loops as they
+    /// fall. Each steered step is solved to the tolerance like any other and measured. [default:
+    /// a quarter of the written loops, as far as the warm-up loops reach]
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_name = "S", requires = "rig", help_heading = "Character")
+    )]
+    pub loop_blend: Option<f64>,
     /// Bind every pin rigidly to this joint (name, #N or Node_N) instead of the skinned surface
     /// under it.
     #[cfg_attr(
@@ -601,6 +611,7 @@ impl Default for ClothJob {
             cycles: defaults::CYCLES,
             warmup_cycles: defaults::WARMUP_CYCLES,
             blend_in: defaults::BLEND_IN,
+            loop_blend: None,
             pin_to: None,
             pin_smooth: defaults::PIN_SMOOTH,
             body_collider: Switch::On,

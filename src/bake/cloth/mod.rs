@@ -399,6 +399,7 @@ pub fn prepare_cloth(job: &ClothJob) -> Result<PreparedCloth> {
         colliders,
         wind,
         measure_from: 0,
+        loop_closure: None,
     };
     let (stiffness, bend_stiffness) = if material.is_some() {
         let k: Vec<f64> = model.springs.iter().map(|s| s.stiffness).collect();

@@ -160,9 +160,23 @@ pub struct CharacterReport {
     /// Largest distance between a particle's position in the first and the last written frame
     /// (the loop's seam), metres.
     pub loop_seam: f64,
+    /// The cross-fade that closes the written loop (`--loop-blend`); absent without one.
+    pub loop_blend: Option<LoopBlend>,
     /// The edge between two pins stretched most over the written frames (`--pin-smooth`);
     /// absent without one.
     pub pin_strain: Option<PinStrain>,
+}
+
+/// The written loops joined up by the solver (`--loop-blend`): their last `frames` frames
+/// steered onto the frames one written span earlier (see [`crate::cloth::LoopClosure`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct LoopBlend {
+    /// The written frames steered (the last ones).
+    pub frames: usize,
+    /// How far apart the loops were where the steering began: the largest distance between a
+    /// particle's position in the frame before the steered ones and in the frame one span
+    /// earlier, metres.
+    pub gap: f64,
 }
 
 /// How far the pins' motion alone stretches the cloth: the worst edge between two pins.
