@@ -4,9 +4,11 @@ Run inside Blender 3.4 (Debian's `blender`), with a clean environment:
 
     env -u PYTHONPATH -u PYTHONHOME PATH=/usr/sbin:/usr/bin:/sbin:/bin \\
         blender -b --factory-startup --python-exit-code 1 --python benches/blender_cloth.py -- \\
-        MESH.obj --pin-box X0,Y0,Z0,X1,Y1,Z1 --frames N --out result.json \\
-        [--collider-sphere X,Y,Z,R] [--collider-obj FILE.obj] [--mass KG | --mass-per-area D]
-        [--quality STEPS] [--tension K] [--fps F] [--self-collision] [--snapshots 0,5,10,20,30]
+        MESH.obj [--pin-box X0,Y0,Z0,X1,Y1,Z1] --frames N --out result.json \\
+        [--translate X,Y,Z] [--collider-sphere X,Y,Z,R] [--collider-obj FILE.obj]
+        [--collider-sequence 'PATTERN%d.obj' [--collider-start N] [--collider-fps F]]
+        [--mass KG | --mass-per-area D] [--quality STEPS] [--tension K] [--fps F]
+        [--self-collision] [--snapshots 0,5,10,20,30] [--pc2-out cloth.pc2]
 
 What it does:
 - imports MESH.obj with Blender's OBJ importer, with forward axis +Y and up axis +Z, which keeps
@@ -15,8 +17,12 @@ What it does:
   The imported vertex positions are compared with the file's `v` lines, one by one: the vertex
   order and coordinates must match the file (exit status 1 if not), so every position written
   below is in the OBJ's frame and vertex order;
-- pins every vertex inside the --pin-box (bounds inclusive, the OBJ's coordinates: the same test
-  as scenebake's `--pin box:`) through a vertex group used as the cloth's pin group;
+- --translate X,Y,Z then moves the garment by that offset (metres) before anything else; pins,
+  colliders and every position written are in the moved coordinates (as scenebake's
+  --translate);
+- pins every vertex inside the --pin-box (bounds inclusive, the OBJ's coordinates, after
+  --translate: the same test as scenebake's `--pin box:`) through a vertex group used as the
+  cloth's pin group;
 - adds a cloth modifier with Blender's default settings (quality 5 steps per frame, vertex mass
   0.3 kg, tension and compression 15, shear 5, bending 0.5, tension damping 5, air damping 1),
   at 30 frames per second, self-collision off, object collision on; --mass or --mass-per-area
@@ -27,6 +33,20 @@ What it does:
   one; its bounding box checked against the file's); --collision-distance sets the cloth's
   minimum distance to them. The garment OBJ must hold one object (`o`), as its vertex order
   is kept;
+- optional moving collider, --collider-sequence PATTERN: a printf-style pattern with one %d
+  (e.g. bodies/kick/shell%d.obj), numbered from --collider-start (default 0). That frame is
+  imported as above (its vertex count and order checked against the file's `v` lines); the
+  following frames' `v` lines are read until a file is missing or the bake's time span is
+  covered (--frames + 1 body frames when --collider-fps equals --fps); all must have the same
+  vertex count. They are written to a PC2 file in a temporary directory, read by a Mesh Cache
+  modifier (linear interpolation) followed by a collision modifier (same settings as
+  --collider-obj). The body runs at --collider-fps frames per second (default --fps): Blender
+  frame f shows body time (f - 1) / --fps, i.e. file frame start + (f - 1) * collider_fps / fps,
+  interpolated linearly between files and held at the last one after it. (The Mesh Cache's
+  time mode is FRAME with frame_scale = collider_fps / fps and frame_start = frame_scale: it
+  plays sample frame_scale * f - frame_start and ignores the PC2 header's start and rate.)
+  The mapping is checked before the bake by evaluating the body at a few Blender frames
+  (exit status 1 if off by more than 1e-5 m from the files), and again at every frame read;
 - bakes the cloth cache with bpy.ops.ptcache.bake_all (what the Bake button does), timing the whole
   bake and each frame (a frame_change_post handler stamps the clock as each frame is done), then
   reads the cached frames (Blender frame 1 is the rest state, our frame 0; our frame k is Blender
@@ -37,16 +57,24 @@ What it does:
   min y now), the mean drop of the hem vertices (those within 1 mm of the lowest height at frame
   0), the 1-minute load average, the largest edge stretch and compression (edge length over rest
   length, minus 1; edges from the OBJ's faces, rest = frame 0), how many edges are stretched or
-  shrunk by more than 10 %, and the vertex positions at the snapshot frames.
+  shrunk by more than 10 %, and the vertex positions at the snapshot frames;
+- with --pc2-out FILE, writes the cloth's positions (OBJ vertex order, the moved frame) at every
+  frame 0..--frames (Blender frames 1..N+1) as a PC2 point cache: little-endian, header
+  b"POINTCACHE2\\0", version 1, points, start frame 0.0, sample rate 1.0, samples N + 1, then
+  float32 x, y, z per point per sample.
 
 Exit status: 0 on success, 1 on a failure (named on stderr), 2 on bad options.
 """
 
 import argparse
+import array
 import json
 import math
 import os
+import shutil
+import struct
 import sys
+import tempfile
 import time
 
 import bpy
@@ -65,7 +93,7 @@ def parse_floats(text, n, what):
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
     # Values such as -0.2,0.99,... start with '-': glue them to their option for argparse.
-    valued = {"--pin-box", "--collider-sphere"}
+    valued = {"--pin-box", "--collider-sphere", "--translate"}
     glued = []
     for w in argv:
         if glued and glued[-1] in valued:
@@ -82,6 +110,16 @@ def parse_args():
     ap.add_argument("--out", required=True, help="result JSON")
     ap.add_argument("--collider-sphere", action="append", default=[], metavar="X,Y,Z,R")
     ap.add_argument("--collider-obj", action="append", default=[], metavar="FILE.obj")
+    ap.add_argument("--collider-sequence", default=None, metavar="PATTERN",
+                    help="moving collider: OBJ frames named by a printf-style pattern with %%d")
+    ap.add_argument("--collider-start", type=int, default=0, metavar="N",
+                    help="number of the sequence's first frame [0]")
+    ap.add_argument("--collider-fps", type=float, default=None, metavar="F",
+                    help="frames per second of the collider sequence [--fps]")
+    ap.add_argument("--translate", default=None, metavar="X,Y,Z",
+                    help="move the garment by this offset (metres) after import")
+    ap.add_argument("--pc2-out", default=None, metavar="FILE",
+                    help="write the cloth's positions at every frame 0..--frames as a PC2 file")
     ap.add_argument("--fps", type=int, default=30)
     ap.add_argument("--quality", type=int, default=None, help="steps per frame [Blender: 5]")
     ap.add_argument("--tension", type=float, default=None,
@@ -110,6 +148,20 @@ def parse_args():
     if a.pin_box is not None:
         a.pin_box = parse_floats(a.pin_box, 6, "--pin-box")
     a.collider_sphere = [parse_floats(s, 4, "--collider-sphere") for s in a.collider_sphere]
+    if a.translate is not None:
+        a.translate = parse_floats(a.translate, 3, "--translate")
+    if a.collider_sequence is not None:
+        try:
+            a.collider_sequence % a.collider_start
+        except (TypeError, ValueError):
+            print(f"blender_cloth.py: --collider-sequence needs one %d in its pattern, got "
+                  f"`{a.collider_sequence}`", file=sys.stderr)
+            sys.exit(2)
+    if a.collider_fps is None:
+        a.collider_fps = float(a.fps)
+    if not a.collider_fps > 0:
+        print("blender_cloth.py: --collider-fps must be positive", file=sys.stderr)
+        sys.exit(2)
     if a.snapshots is None:
         snaps = [0, 5] + list(range(10, a.frames + 1, 10))
     else:
@@ -163,6 +215,131 @@ def import_obj(path, join=False):
     return obj
 
 
+def write_pc2(path, frames, start=0.0, rate=1.0):
+    """Write `frames` (a list of equally long lists of (x, y, z)) as a little-endian PC2 file."""
+    points = len(frames[0])
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as f:
+        f.write(struct.pack("<12siiffi", b"POINTCACHE2\0", 1, points, start, rate, len(frames)))
+        for pos in frames:
+            if len(pos) != points:
+                raise SystemExit(f"blender_cloth.py: {path}: a sample has {len(pos)} points, not {points}")
+            buf = array.array("f", [c for p in pos for c in p])
+            if sys.byteorder != "little":
+                buf.byteswap()
+            f.write(buf.tobytes())
+    os.replace(tmp, path)
+
+
+def sample_sequence(seq, s):
+    """Body positions at (fractional) sample s of `seq`: linear between samples, clamped."""
+    s = min(max(s, 0.0), len(seq) - 1.0)
+    i = int(math.floor(s))
+    t = s - i
+    if t < 1e-9 or i + 1 >= len(seq):
+        return seq[i]
+    return [tuple(p + t * (q - p) for p, q in zip(u, v)) for u, v in zip(seq[i], seq[i + 1])]
+
+
+def setup_collider_sequence(a, scene, tmpdir):
+    """The moving collider of --collider-sequence: frame `start` imported, every frame in a PC2
+    file read by a Mesh Cache modifier, then a collision modifier; returns (object, frames read,
+    info for the JSON)."""
+    first = a.collider_sequence % a.collider_start
+    if not os.path.exists(first):
+        raise SystemExit(f"blender_cloth.py: --collider-sequence: first frame {first} does not exist")
+    ratio = a.collider_fps / a.fps  # body frames per cloth frame
+    # body frames needed to cover Blender frames 1..N+1 (== --frames + 1 at equal rates)
+    needed = math.ceil(a.frames * ratio - 1e-9) + 1
+    seq = []
+    files = []
+    n = a.collider_start
+    while len(seq) < needed:
+        path = a.collider_sequence % n
+        if not os.path.exists(path):
+            break
+        verts = read_obj(path)[0]
+        if seq and len(verts) != len(seq[0]):
+            raise SystemExit(f"blender_cloth.py: --collider-sequence: {path} has {len(verts)} vertices, "
+                             f"{files[0]} has {len(seq[0])}")
+        seq.append(verts)
+        files.append(path)
+        n += 1
+    body = import_obj(first, join=True)
+    body.name = "collider_sequence"
+    imported = [tuple(v.co) for v in body.data.vertices]
+    if len(imported) != len(seq[0]):
+        raise SystemExit(
+            f"blender_cloth.py: {first}: the file has {len(seq[0])} vertices, Blender imported "
+            f"{len(imported)} (unused vertices dropped, or several objects joined?); the body's point "
+            f"cache could not be matched to its vertex order")
+    dev = max(max(abs(p - q) for p, q in zip(u, v)) for u, v in zip(imported, seq[0]))
+    if dev > 1e-5:
+        raise SystemExit(f"blender_cloth.py: {first}: imported vertex positions differ from the file's "
+                         f"(largest difference {dev:.3g} m): axis conversion or vertex order changed")
+    cache = os.path.join(tmpdir, "collider_sequence.pc2")
+    write_pc2(cache, seq)
+    mc = body.modifiers.new("MeshCache", "MESH_CACHE")
+    mc.cache_format = "PC2"
+    mc.filepath = cache
+    mc.deform_mode = "OVERWRITE"
+    mc.interpolation = "LINEAR"
+    mc.forward_axis = "POS_Y"  # identity axes
+    mc.up_axis = "POS_Z"
+    mc.play_mode = "SCENE"
+    # FRAME mode: the sample read at Blender frame f is frame_scale * f - frame_start (0-based,
+    # linear between samples, clamped to the file); the PC2 header's start and rate are ignored.
+    mc.time_mode = "FRAME"
+    mc.frame_scale = ratio
+    mc.frame_start = ratio  # Blender frame 1 -> sample 0
+    body.modifiers.new("Collision", "COLLISION")  # after the Mesh Cache: the deformed mesh collides
+    if a.collider_thickness is not None:
+        body.collision.thickness_outer = a.collider_thickness
+    if [m.type for m in body.modifiers] != ["MESH_CACHE", "COLLISION"]:
+        raise SystemExit(f"blender_cloth.py: collider modifier stack is {[m.type for m in body.modifiers]}")
+
+    # --- the frame mapping: evaluate the body at a few Blender frames, compare with the files
+    last = a.frames + 1
+    # whole frames, plus Blender frame 1.5 (a sub-frame: tests the linear interpolation)
+    check_frames = sorted({1, 1.5, 2, min(3, last), (last + 1) // 2 + 1, last})
+    checks = []
+    for f in check_frames:
+        scene.frame_set(int(f), subframe=f - int(f))
+        got = positions(body, bpy.context.evaluated_depsgraph_get())
+        s = (f - 1) * ratio
+        want = sample_sequence(seq, s)
+        if len(got) != len(want):
+            raise SystemExit(f"blender_cloth.py: --collider-sequence: Blender frame {f}: the body has "
+                             f"{len(got)} vertices, the cache {len(want)} (Mesh Cache not applied?)")
+        d = max(max(abs(p - q) for p, q in zip(u, v)) for u, v in zip(got, want))
+        # how far the body moves over that stretch, to show the check can tell frames apart
+        moved = max(max(abs(p - q) for p, q in zip(u, v)) for u, v in zip(seq[0], want))
+        checks.append({"blender_frame": f, "body_sample": s, "max_abs_difference_m": d,
+                       "max_motion_from_sample_0_m": moved})
+        if d > 1e-5:
+            raise SystemExit(f"blender_cloth.py: --collider-sequence: at Blender frame {f} the body should "
+                             f"show sample {s:.4f} (file frame {a.collider_start + s:.4f}) but differs from "
+                             f"it by {d:.3g} m: the Mesh Cache's time mapping is off")
+    scene.frame_set(1)
+    span = (len(seq) - 1) / ratio + 1  # last Blender frame the body still moves at
+    if span < last:
+        print(f"blender_cloth.py: warning: --collider-sequence has {len(seq)} frames, the body holds its "
+              f"last pose after Blender frame {span:.2f} (of {last})", file=sys.stderr)
+    info = {
+        "sequence": a.collider_sequence, "start": a.collider_start, "files_read": len(seq),
+        "first_file": files[0], "last_file": files[-1], "vertices": len(imported),
+        "import_max_abs_difference_m": dev, "collider_fps": a.collider_fps,
+        "mesh_cache": {"cache_format": mc.cache_format, "time_mode": mc.time_mode,
+                       "play_mode": mc.play_mode, "frame_scale": mc.frame_scale,
+                       "frame_start": mc.frame_start, "interpolation": mc.interpolation},
+        "modifiers": [m.type for m in body.modifiers],
+        "body_moves_until_blender_frame": span,
+        "mapping_check": checks,
+        "thickness_outer": body.collision.thickness_outer,
+    }
+    return body, seq, info
+
+
 def bounds(points):
     return [[min(p[k] for p in points) for k in range(3)], [max(p[k] for p in points) for k in range(3)]]
 
@@ -211,6 +388,14 @@ def loadavg():
 
 def main():
     a = parse_args()
+    tmpdir = tempfile.mkdtemp(prefix="blender_cloth_")
+    try:
+        run(a, tmpdir)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def run(a, tmpdir):
     file_verts, tris = read_obj(a.mesh)
     load_before = loadavg()
 
@@ -242,6 +427,20 @@ def main():
         "vertex_0_blender": list(imported[0]),
         "order": "file order (every vertex compared)",
     }
+    if a.translate is not None:
+        # move the garment (mesh data, so the object stays at identity) and the reference positions
+        import mathutils
+        me.transform(mathutils.Matrix.Translation(a.translate))
+        me.update()
+        tx, ty, tz = a.translate
+        file_verts = [(x + tx, y + ty, z + tz) for x, y, z in file_verts]
+        import_check["translate"] = list(a.translate)
+
+    # --- moving collider (set up and checked before the cloth exists, so that evaluating the
+    # scene at other frames for the check simulates nothing)
+    seq_body = seq_frames = seq_info = None
+    if a.collider_sequence is not None:
+        seq_body, seq_frames, seq_info = setup_collider_sequence(a, scene, tmpdir)
 
     # --- pins
     pinned = []
@@ -292,6 +491,7 @@ def main():
     settings["collision_distance_min"] = mod.collision_settings.distance_min
     settings["collision_quality"] = mod.collision_settings.collision_quality
     settings["fps"] = a.fps
+    settings["translate"] = a.translate
     settings["gravity"] = list(scene.gravity)
     settings["total_mass_kg"] = cs.mass * len(file_verts)
     settings["mass_per_area_kg_m2"] = cs.mass * len(file_verts) / area
@@ -320,6 +520,9 @@ def main():
         colliders.append({"obj": path, "vertices": len(c.data.vertices), "bounds": blender_b,
                           "bounds_max_abs_difference_m": dev,
                           "thickness_outer": c.collision.thickness_outer})
+
+    if seq_info is not None:
+        colliders.append(seq_info)
 
     # --- edges (from the OBJ's faces) and their rest lengths (frame 0)
     edges = sorted({(min(i, j), max(i, j)) for t in tris for i, j in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))})
@@ -374,6 +577,8 @@ def main():
             raise SystemExit("blender_cloth.py: bpy.ops.ptcache.bake_all did not bake the cloth cache")
     t_all = time.perf_counter()
     cpu_loop_start = cpu_jiffies()
+    all_pos = []
+    body_dev = []
     for f in range(0, a.frames + 1):
         c0, t0 = time.process_time(), time.perf_counter()
         scene.frame_set(f + 1)
@@ -411,10 +616,26 @@ def main():
         })
         if f in a.snapshots:
             snapshots[str(f)] = [[round(c, 6) for c in p] for p in pos]
+        if a.pc2_out is not None:
+            all_pos.append(pos)
+        if seq_body is not None:
+            # (after the frame's timing) the body as the cloth saw it, against the files
+            got = positions(seq_body, depsgraph)
+            want = sample_sequence(seq_frames, f * a.collider_fps / a.fps)
+            d = max(max(abs(p - q) for p, q in zip(u, v)) for u, v in zip(got, want))
+            body_dev.append(d)
+            frames[-1]["body_max_abs_difference_m"] = d
         print(f"frame {f:3d}: {0 if f == 0 else t1 - t0:7.3f} s  min y {min_y:.4f}  drop {min_y0 - min_y:.4f} m  "
               f"stretch {100 * stretch:6.2f} %  compression {100 * compress:6.2f} %", flush=True)
     wall = time.perf_counter() - t_all
     loop_busy = busy_cores(cpu_loop_start, wall)
+    if seq_info is not None:
+        seq_info["max_abs_difference_every_frame_m"] = max(body_dev)
+        if max(body_dev) > 1e-5:
+            raise SystemExit(f"blender_cloth.py: --collider-sequence: the body differed from its files by "
+                             f"{max(body_dev):.3g} m at frame {body_dev.index(max(body_dev))}")
+    if a.pc2_out is not None:
+        write_pc2(a.pc2_out, all_pos, start=0.0, rate=1.0)
 
     finite = all(math.isfinite(c) for p in pos for c in p)
     step_sorted = sorted(step_times)
@@ -471,6 +692,7 @@ def main():
         "finite": finite,
         "per_frame": frames,
         "positions": snapshots,
+        "pc2_out": a.pc2_out,
     }
     tmp = a.out + ".tmp"
     with open(tmp, "w") as f:
