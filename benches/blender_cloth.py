@@ -8,7 +8,7 @@ Run inside Blender 3.4 (Debian's `blender`), with a clean environment:
         [--translate X,Y,Z] [--collider-sphere X,Y,Z,R] [--collider-obj FILE.obj]
         [--collider-sequence 'PATTERN%d.obj' [--collider-start N] [--collider-fps F]]
         [--mass KG | --mass-per-area D] [--quality STEPS] [--tension K] [--fps F]
-        [--self-collision] [--snapshots 0,5,10,20,30] [--pc2-out cloth.pc2]
+        [--self-collision [--self-distance M]] [--snapshots 0,5,10,20,30] [--pc2-out cloth.pc2]
 
 What it does:
 - imports MESH.obj with Blender's OBJ importer, with forward axis +Y and up axis +Z, which keeps
@@ -129,6 +129,8 @@ def parse_args():
     g.add_argument("--mass-per-area", type=float, default=None, metavar="KG_PER_M2",
                    help="areal density; vertex mass = density * area / vertices")
     ap.add_argument("--self-collision", action="store_true")
+    ap.add_argument("--self-distance", type=float, default=None, metavar="M",
+                    help="self-collision distance [Blender: 0.015 m]")
     ap.add_argument("--collision-distance", type=float, default=None, metavar="M",
                     help="cloth's minimum distance to colliders [Blender: 0.015 m]")
     ap.add_argument("--collider-thickness", type=float, default=None, metavar="M",
@@ -477,6 +479,8 @@ def run(a, tmpdir):
     mod.collision_settings.use_self_collision = a.self_collision
     if a.collision_distance is not None:
         mod.collision_settings.distance_min = a.collision_distance
+    if a.self_distance is not None:
+        mod.collision_settings.self_distance_min = a.self_distance
     mod.point_cache.frame_start = 1
     mod.point_cache.frame_end = a.frames + 1
     settings = {
@@ -490,6 +494,7 @@ def run(a, tmpdir):
     settings["use_self_collision"] = mod.collision_settings.use_self_collision
     settings["collision_distance_min"] = mod.collision_settings.distance_min
     settings["collision_quality"] = mod.collision_settings.collision_quality
+    settings["self_distance_min"] = mod.collision_settings.self_distance_min
     settings["fps"] = a.fps
     settings["translate"] = a.translate
     settings["gravity"] = list(scene.gravity)
