@@ -32,7 +32,12 @@ fn read_obj(path: &Path) -> Result<(usize, Vec<[u32; 3]>), Failure> {
             Some("v") => {
                 let p: Vec<f64> = words.take(3).map(str::parse).collect::<Result<_, _>>()?;
                 if p.len() != 3 {
-                    return Err(format!("{}:{}: a `v` line needs 3 numbers", path.display(), n + 1).into());
+                    return Err(format!(
+                        "{}:{}: a `v` line needs 3 numbers",
+                        path.display(),
+                        n + 1
+                    )
+                    .into());
                 }
                 positions.push([p[0].to_bits(), p[1].to_bits(), p[2].to_bits()]);
             }
@@ -40,7 +45,11 @@ fn read_obj(path: &Path) -> Result<(usize, Vec<[u32; 3]>), Failure> {
                 let corners: Vec<u32> = words
                     .map(|w| {
                         let i: i64 = w.split('/').next().unwrap_or("").parse()?;
-                        Ok(if i > 0 { i - 1 } else { positions.len() as i64 + i } as u32)
+                        Ok(if i > 0 {
+                            i - 1
+                        } else {
+                            positions.len() as i64 + i
+                        } as u32)
                     })
                     .collect::<Result<_, std::num::ParseIntError>>()?;
                 for k in 1..corners.len().saturating_sub(1) {
@@ -70,7 +79,11 @@ fn read_pc2(path: &Path) -> Result<Vec<Vec<DVec3>>, Failure> {
     let int = |at: usize| i32::from_le_bytes(b[at..at + 4].try_into().unwrap()) as usize;
     let (points, samples) = (int(16), int(28));
     if b.len() != 32 + 12 * points * samples {
-        return Err(format!("{}: {points} points × {samples} samples do not fill it", path.display()).into());
+        return Err(format!(
+            "{}: {points} points × {samples} samples do not fill it",
+            path.display()
+        )
+        .into());
     }
     let float = |at: usize| f64::from(f32::from_le_bytes(b[at..at + 4].try_into().unwrap()));
     Ok((0..samples)
@@ -93,7 +106,12 @@ fn main() -> Result<(), Failure> {
     let (points, triangles) = read_obj(Path::new(&args[0]))?;
     let frames = read_pc2(Path::new(&args[1]))?;
     if frames.first().is_some_and(|f| f.len() != points) {
-        return Err(format!("{} has {points} vertices, the cache {}", args[0], frames[0].len()).into());
+        return Err(format!(
+            "{} has {points} vertices, the cache {}",
+            args[0],
+            frames[0].len()
+        )
+        .into());
     }
     let body = match &args[2..] {
         [pattern, body_fps, _] => Some(scenebake::io::sequence::load_obj_sequence(

@@ -737,6 +737,7 @@ impl StepSolver for FastSolver {
             self_contacts: 0,
             steps: 1,
             pinched: 0,
+            pinched_pairs: 0,
         })
     }
 }

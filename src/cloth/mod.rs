@@ -78,6 +78,10 @@ pub struct StepStats {
     /// it until they come out (summed over a frame's steps; see
     /// [`collide::contact::NewtonContact::make_feasible`]).
     pub pinched: usize,
+    /// Self-contact pairs of a body's vertex or edge with the cloth released as pinched, the body
+    /// let through the cloth there (summed over a frame's steps; see
+    /// [`self_contact::SelfContact::release_pinched`]).
+    pub pinched_pairs: usize,
 }
 
 impl StepStats {
@@ -91,6 +95,7 @@ impl StepStats {
             self_contacts: self.self_contacts.max(next.self_contacts),
             steps: self.steps + next.steps,
             pinched: self.pinched + next.pinched,
+            pinched_pairs: self.pinched_pairs + next.pinched_pairs,
         }
     }
 }

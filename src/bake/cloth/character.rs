@@ -283,7 +283,8 @@ pub fn bake_on_character(
             Param::LoopBlend
         ));
     }
-    if job.body_collider == Switch::On && sim.frames.iter().any(|f| f.pinched > 0) {
+    if job.body_collider == Switch::On && sim.frames.iter().any(|f| f.pinched + f.pinched_pairs > 0)
+    {
         out.warnings.push(text!(
             "where a part of the body closes on another through the garment (an arm on the \
              hips, thighs meeting), ",

@@ -1505,6 +1505,7 @@ fn environment_report(params: &BakeParams, frames: &[StepStats]) -> Option<Envir
         contact: c.model,
         contacts: frames.iter().map(|f| f.contacts).collect(),
         pinched: frames.iter().map(|f| f.pinched).collect(),
+        pinched_pairs: frames.iter().map(|f| f.pinched_pairs).collect(),
         wind: params.wind.as_ref().map(|w| WindReport {
             velocity: w.velocity.to_array(),
             drag: w.drag,
@@ -1603,6 +1604,7 @@ fn report(
             let mut w = model.warnings.clone();
             w.extend(convergence_warning(frames, params.tolerance));
             w.extend(pinch_warning(frames));
+            w.extend(pinched_pairs_warning(frames));
             w.extend(quality_warnings(&quality, params.self_contact.is_some()));
             w
         },
@@ -1627,6 +1629,27 @@ fn pinch_warning(frames: &[StepStats]) -> Option<Text> {
          at frame {at}): they were let through it until they came out; see \
          environment.pinched and quality.body_crossings",
         frames.iter().filter(|f| f.pinched > 0).count()
+    )))
+}
+
+/// "self-contact released 240 pairs of the body with the cloth as pinched, in 22 frames (most
+/// 44 at frame 90): …", when it did.
+fn pinched_pairs_warning(frames: &[StepStats]) -> Option<Text> {
+    let pinched: usize = frames.iter().map(|f| f.pinched_pairs).sum();
+    if pinched == 0 {
+        return None;
+    }
+    let (most, at) = frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| (f.pinched_pairs, i + 1))
+        .fold((0, 0), |a, b| if b.0 > a.0 { b } else { a });
+    Some(text!(format!(
+        "self-contact released {pinched} pairs of a body's vertex or edge with the cloth, pressed \
+         to the bottom of their layer where the body closed on the cloth, in {} frames (most \
+         {most} at frame {at}): the body was let through the cloth there; see \
+         environment.pinched_pairs and quality.body_crossings",
+        frames.iter().filter(|f| f.pinched_pairs > 0).count()
     )))
 }
 

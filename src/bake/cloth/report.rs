@@ -302,6 +302,9 @@ pub struct EnvironmentReport {
     /// Particles a moving body pinched behind its surface in each frame (summed over its
     /// steps): released from it until they came out, where the cloth went through the body.
     pub pinched: Vec<usize>,
+    /// Self-contact pairs of a body's vertex or edge with the cloth released as pinched in each
+    /// frame (summed over its steps): where the body closed on the cloth and was let through it.
+    pub pinched_pairs: Vec<usize>,
     /// The wind, when any.
     pub wind: Option<WindReport>,
 }

@@ -566,6 +566,10 @@ impl NewtonSolver {
         self.trial = trial;
         if let Some(s) = &mut self.self_contact {
             s.commit_obstacles(if moved { alpha } else { 0.0 });
+            // A stalled push: cloth pinched between the body's parts lets them through.
+            if !moved || alpha < super::self_contact::STALLED_PUSH {
+                s.release_pinched(x);
+            }
         }
         let at: &[DVec3] = x;
         self.self_path(at, at);
@@ -836,6 +840,7 @@ impl StepSolver for NewtonSolver {
             self_contacts,
             steps: 1,
             pinched,
+            pinched_pairs: self.self_contact.as_ref().map_or(0, SelfContact::pinched),
         })
     }
 }

@@ -81,6 +81,14 @@ const TOUCHING: f64 = 1e-2;
 /// Obstacles moving within a step are taken to have arrived this close to their goal, in layers.
 const ARRIVED: f64 = 1e-2;
 
+/// A push that moves the obstacles less than this fraction of their remaining way is stalled
+/// (see [`SelfContact::release_pinched`]).
+pub(crate) const STALLED_PUSH: f64 = 1e-2;
+
+/// Pairs of an obstacle with the cloth this deep into their band or deeper (u, 0 at its bottom)
+/// when a push stalls are pinched (see [`SelfContact::release_pinched`]).
+const PINCHED: f64 = 1e-2;
+
 /// How much of the distance a pair may cover safely each additive-CCD round advances by.
 const CCD_ADVANCE: f64 = 0.9;
 
@@ -182,6 +190,9 @@ pub struct SelfContact {
     path_span: f64,
     /// Whether obstacles move within the step (else they jump between steps).
     move_within: bool,
+    /// Pairs released in this step: pinched between the obstacles and the cloth
+    /// ([`SelfContact::release_pinched`]).
+    pinched: usize,
 }
 
 impl SelfContact {
@@ -233,6 +244,7 @@ impl SelfContact {
             obstacles_moving: false,
             path_span: 0.0,
             move_within: false,
+            pinched: 0,
         }
     }
 
@@ -436,6 +448,7 @@ impl SelfContact {
     pub fn begin_step(&mut self, x0: &[DVec3]) {
         let first = !self.started;
         self.started = true;
+        self.pinched = 0;
         self.thin(x0, if first { 1.5 } else { 0.5 });
         // The start of the step is where the solver's search begins: it checks its own path.
         self.ready = false;
@@ -446,6 +459,37 @@ impl SelfContact {
     /// the layer they rest at, as at a step's start, so the energy is finite at `x`.
     pub fn accept(&mut self, x: &[DVec3]) {
         self.thin(x, 0.5);
+    }
+
+    /// Leaves out, while they touch, the pairs of an obstacle and the cloth at `x` (solver order)
+    /// pressed to within [`PINCHED`] of their band's bottom, as [`TOUCHING`] pairs are; returns
+    /// how many. Called when a push stalls: where two parts of a body close on the cloth between
+    /// them (thighs passing each other through a skirt), the cloth cannot get out of the way,
+    /// and each push took the body a tenth of the remaining gap further, until a step ended with
+    /// forces 2e8 times the cloth's weight unbalanced (the CesiumMan skirt). Released, the body
+    /// passes through the cloth there (the crossings are measured and reported), and the pair's
+    /// layer grows back as it moves apart ([`SelfContact::end_step`]).
+    pub fn release_pinched(&mut self, x: &[DVec3]) -> usize {
+        let mut released = 0;
+        for k in 0..self.pairs.len() {
+            let pair = self.pairs[k];
+            if pair.layer == 0.0 || !pair.v.iter().any(|&v| self.is_obstacle(v as usize)) {
+                continue;
+            }
+            let d = self.separation(&pair, self.positions(&pair, x)).distance();
+            if d - 0.5 * pair.layer <= PINCHED * pair.layer {
+                self.thinned.insert(pair.key, 0.0);
+                self.pairs[k].layer = 0.0;
+                released += 1;
+            }
+        }
+        self.pinched += released;
+        released
+    }
+
+    /// Pairs released as pinched in this step ([`SelfContact::release_pinched`]).
+    pub fn pinched(&self) -> usize {
+        self.pinched
     }
 
     /// Finds the pairs around `x` and thins the layer of each closer than `below` layers.
