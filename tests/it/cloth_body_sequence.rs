@@ -593,6 +593,14 @@ fn box_and_lid_obj(bottom: f64) -> String {
     box_obj(0.0, false) + &lid
 }
 
+/// Writes `dir/lid%d.obj`: the box and the lid closing on it, frames `0..FRAMES`.
+fn write_lid_sequence(dir: &Path) {
+    for i in 0..FRAMES {
+        let bottom = lid_at(i as f64 / BODY_FPS);
+        std::fs::write(dir.join(format!("lid{i}.obj")), box_and_lid_obj(bottom)).unwrap();
+    }
+}
+
 /// A lid closing on a sheet that lies on a box, until the two overlap: a particle the lid
 /// carries down behind the box's top has nowhere to be held. It is released from that surface
 /// (counted in the report's `environment.pinched`) and the bake goes on, where it used to stop
@@ -601,14 +609,7 @@ fn box_and_lid_obj(bottom: f64) -> String {
 #[test]
 fn cloth_pinched_by_a_closing_body_is_released_counted_and_the_bake_finishes() {
     let dir = tempfile::tempdir().unwrap();
-    for i in 0..FRAMES {
-        let bottom = lid_at(i as f64 / BODY_FPS);
-        std::fs::write(
-            dir.path().join(format!("lid{i}.obj")),
-            box_and_lid_obj(bottom),
-        )
-        .unwrap();
-    }
+    write_lid_sequence(dir.path());
     let out = dir.path().join("pinched.glb");
     let job = job(dir.path(), dir.path().join("lid%d.obj"), &out);
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
@@ -647,14 +648,7 @@ fn cloth_pinched_by_a_closing_body_is_released_counted_and_the_bake_finishes() {
 #[test]
 fn a_body_closing_on_cloth_with_self_contact_releases_its_pinched_pairs() {
     let dir = tempfile::tempdir().unwrap();
-    for i in 0..FRAMES {
-        let bottom = lid_at(i as f64 / BODY_FPS);
-        std::fs::write(
-            dir.path().join(format!("lid{i}.obj")),
-            box_and_lid_obj(bottom),
-        )
-        .unwrap();
-    }
+    write_lid_sequence(dir.path());
     let out = dir.path().join("pinched.glb");
     let job = ClothJob {
         self_contact: scenebake::bake::cloth::Switch::On,

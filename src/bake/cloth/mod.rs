@@ -1615,42 +1615,43 @@ fn report(
 /// "a moving body pinched 23 particles behind its surface, in 11 frames (most 4 at frame 29):
 /// …", when one did.
 fn pinch_warning(frames: &[StepStats]) -> Option<Text> {
-    let pinched: usize = frames.iter().map(|f| f.pinched).sum();
-    if pinched == 0 {
-        return None;
-    }
-    let (most, at) = frames
-        .iter()
-        .enumerate()
-        .map(|(i, f)| (f.pinched, i + 1))
-        .fold((0, 0), |a, b| if b.0 > a.0 { b } else { a });
+    let (pinched, in_frames, most, at) = per_frame(frames, |f| f.pinched)?;
     Some(text!(format!(
-        "a moving body pinched {pinched} particles behind its surface, in {} frames (most {most} \
-         at frame {at}): they were let through it until they came out; see \
-         environment.pinched and quality.body_crossings",
-        frames.iter().filter(|f| f.pinched > 0).count()
+        "a moving body pinched {pinched} particles behind its surface, in {in_frames} frames \
+         (most {most} at frame {at}): they were let through it until they came out; see \
+         environment.pinched and quality.body_crossings"
     )))
 }
 
-/// "self-contact released 240 pairs of the body with the cloth as pinched, in 22 frames (most
-/// 44 at frame 90): …", when it did.
+/// "self-contact released 240 pairs of a body's vertex or edge with the cloth … in 22 frames
+/// (most 44 at frame 90): …", when it did.
 fn pinched_pairs_warning(frames: &[StepStats]) -> Option<Text> {
-    let pinched: usize = frames.iter().map(|f| f.pinched_pairs).sum();
-    if pinched == 0 {
+    let (pinched, in_frames, most, at) = per_frame(frames, |f| f.pinched_pairs)?;
+    Some(text!(format!(
+        "self-contact released {pinched} pairs of a body's vertex or edge with the cloth, pressed \
+         to the bottom of their layer where the body closed on the cloth, in {in_frames} frames \
+         (most {most} at frame {at}): the body was let through the cloth there; see \
+         environment.pinched_pairs and quality.body_crossings"
+    )))
+}
+
+/// A count over the frames: its sum, the frames where it is not zero, its largest value and the
+/// first frame (from 1) with it; `None` when it is zero everywhere.
+fn per_frame(
+    frames: &[StepStats],
+    count: impl Fn(&StepStats) -> usize,
+) -> Option<(usize, usize, usize, usize)> {
+    let sum: usize = frames.iter().map(&count).sum();
+    if sum == 0 {
         return None;
     }
     let (most, at) = frames
         .iter()
         .enumerate()
-        .map(|(i, f)| (f.pinched_pairs, i + 1))
+        .map(|(i, f)| (count(f), i + 1))
         .fold((0, 0), |a, b| if b.0 > a.0 { b } else { a });
-    Some(text!(format!(
-        "self-contact released {pinched} pairs of a body's vertex or edge with the cloth, pressed \
-         to the bottom of their layer where the body closed on the cloth, in {} frames (most \
-         {most} at frame {at}): the body was let through the cloth there; see \
-         environment.pinched_pairs and quality.body_crossings",
-        frames.iter().filter(|f| f.pinched_pairs > 0).count()
-    )))
+    let in_frames = frames.iter().filter(|f| count(f) > 0).count();
+    Some((sum, in_frames, most, at))
 }
 
 /// "31 of 48 frames ended above the tolerance 0.05 (worst 3.2 at frame 7)", when any did.
