@@ -172,7 +172,7 @@ params! {
     PinTo => "pin_to",
     /// How far the pins' skin weights are averaged.
     PinSmooth => "pin_smooth",
-    /// How long the end of a character's written loop is cross-faded.
+    /// How long the end of a character's written loop is steered onto the loop before.
     LoopBlend => "loop_blend",
     /// Whether the character's body is a collider.
     BodyCollider => "body_collider",

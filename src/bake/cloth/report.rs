@@ -160,7 +160,7 @@ pub struct CharacterReport {
     /// Largest distance between a particle's position in the first and the last written frame
     /// (the loop's seam), metres.
     pub loop_seam: f64,
-    /// The cross-fade that closes the written loop (`--loop-blend`); absent without one.
+    /// The steering that joins the written loop up (`--loop-blend`); absent without it.
     pub loop_blend: Option<LoopBlend>,
     /// The edge between two pins stretched most over the written frames (`--pin-smooth`);
     /// absent without one.

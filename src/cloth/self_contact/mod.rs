@@ -465,8 +465,9 @@ impl SelfContact {
     /// pressed to within [`PINCHED`] of their band's bottom, as [`TOUCHING`] pairs are; returns
     /// how many. Called when a push stalls: where two parts of a body close on the cloth between
     /// them (thighs passing each other through a skirt), the cloth cannot get out of the way,
-    /// and each push took the body a tenth of the remaining gap further, until a step ended with
-    /// forces 2e8 times the cloth's weight unbalanced (the CesiumMan skirt). Released, the body
+    /// and each push took the body a tenth of the remaining gap further, until the matrix no
+    /// longer factored (the CesiumMan mini skirt, a body vertex at 1e-8 of its band under a
+    /// cloth triangle). Released, the body
     /// passes through the cloth there (the crossings are measured and reported), and the pair's
     /// layer grows back as it moves apart ([`SelfContact::end_step`]).
     pub fn release_pinched(&mut self, x: &[DVec3]) -> usize {
