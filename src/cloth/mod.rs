@@ -140,6 +140,13 @@ pub trait StepSolver {
 
     /// Sets the time step (seconds) of the following steps.
     fn set_time_step(&mut self, _h: f64) {}
+
+    /// The fraction of the straight move of the free particles from `from` to `to` (solver
+    /// order, between steps) the cloth can make without passing through itself: 1 for the
+    /// whole move, and for solvers without self-contact. See [`LoopClosure`].
+    fn free_path(&mut self, _from: &[DVec3], _to: &[DVec3]) -> f64 {
+        1.0
+    }
 }
 
 /// Which solver a bake uses.
@@ -205,9 +212,10 @@ pub struct BakeParams {
 /// The last `frames` frames of a bake steered onto the frames `span` before them: before the
 /// steps into frame k, the cloth's positions and velocities are moved a fraction β of the way to
 /// those it had at frame k − 1 − span (the velocity from the two cached frames there), β rising
-/// smoothly (3s² − 2s³) over the `frames` to 1 before the last frame's steps; each step is then
-/// solved as any other (to the tolerance, with every contact), so the solver, not a
-/// cross-fade, carries the cloth onto the earlier frames' path.
+/// smoothly (3s² − 2s³) over the `frames` to 1 before the last frame's steps (less where the
+/// cloth would pass through itself on the way: with self-contact, the move stops where additive
+/// CCD stops it); each step is then solved as any other (to the tolerance, with every contact),
+/// so the solver, not a cross-fade, carries the cloth onto the earlier frames' path.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LoopClosure {
     /// Frames steered (the last of the bake).
@@ -397,7 +405,7 @@ pub fn simulate_driven(
             let beta = closure.weight(frame, params.frames);
             if beta > 0.0 {
                 steer(
-                    solver.system(),
+                    &mut *solver,
                     &cache,
                     frame - 1 - closure.span,
                     params.fps,
@@ -462,9 +470,10 @@ pub fn simulate_driven(
 
 /// Moves the free particles' positions `x` and velocities `v` (solver order) the fraction `beta`
 /// of the way to the state of `cache`'s frame `target`: its positions, and the velocity from
-/// the frame before it to it at `fps` (zero at frame 0). See [`LoopClosure`].
+/// the frame before it to it at `fps` (zero at frame 0); less where the cloth would pass
+/// through itself on the way ([`StepSolver::free_path`]). See [`LoopClosure`].
 fn steer(
-    sys: &ReducedSystem,
+    solver: &mut dyn StepSolver,
     cache: &FrameCache,
     target: usize,
     fps: f64,
@@ -474,9 +483,20 @@ fn steer(
 ) {
     let now = cache.frame(target);
     let before = cache.frame(target.saturating_sub(1));
-    for ((x, v), &p) in x.iter_mut().zip(v.iter_mut()).zip(&sys.particle_of) {
+    let goal = |x: DVec3, p: u32, b: f64| x * (1.0 - b) + now[p as usize].as_dvec3() * b;
+    let to: Vec<DVec3> = x
+        .iter()
+        .zip(&solver.system().particle_of)
+        .map(|(&x, &p)| goal(x, p, beta))
+        .collect();
+    let beta = beta * solver.free_path(x, &to).min(1.0);
+    for ((x, v), &p) in x
+        .iter_mut()
+        .zip(v.iter_mut())
+        .zip(&solver.system().particle_of)
+    {
         let (p1, p0) = (now[p as usize].as_dvec3(), before[p as usize].as_dvec3());
-        *x = *x * (1.0 - beta) + p1 * beta;
+        *x = goal(*x, p, beta);
         *v = *v * (1.0 - beta) + (p1 - p0) * (fps * beta);
     }
 }

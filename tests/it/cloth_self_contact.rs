@@ -289,3 +289,86 @@ fn self_contact_on_two_threads_bakes_the_same_file_as_on_one() {
     assert!(pairs.iter().any(|&n| n > 0), "pairs in contact: {pairs:?}");
     assert!(one == two, "the files differ between one thread and two");
 }
+
+/// A move between steps (a character loop's steering, `--loop-blend`) goes only as far as the
+/// cloth can go without passing through itself: two sheets 1 cm apart, the upper one moved
+/// 2 cm straight down through the lower. With self-contact the solver allows less than half of
+/// the move and the state there crosses nowhere (an exact test of every pair); without it, the
+/// whole move, which crosses.
+#[test]
+fn a_move_between_steps_stops_where_the_cloth_would_cross_itself() {
+    use scenebake::bake::cloth::{prepare_cloth, Switch};
+    use scenebake::cloth::make_solver;
+    use scenebake::glam::{DVec3, Vec3};
+
+    let dir = tempfile::tempdir().unwrap();
+    let n = 9;
+    let mut obj = String::new();
+    // The lower sheet's grid is offset from the upper's, so that crossings are not along edges.
+    for (y, shift) in [(0.0, 0.013), (0.01, 0.0)] {
+        for j in 0..n {
+            for i in 0..n {
+                let (x, z) = (
+                    0.4 * i as f64 / (n - 1) as f64 + shift,
+                    0.4 * j as f64 / (n - 1) as f64 + 1.6 * shift,
+                );
+                obj += &format!("v {x} {y} {z}\n");
+            }
+        }
+    }
+    for layer in 0..2 {
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = layer * n * n + j * n + i + 1;
+                obj += &format!(
+                    "f {a} {} {}\nf {a} {} {}\n",
+                    a + n,
+                    a + n + 1,
+                    a + n + 1,
+                    a + 1
+                );
+            }
+        }
+    }
+    let input = dir.path().join("two.obj");
+    std::fs::write(&input, obj).unwrap();
+    let moved = |on: Switch| {
+        let job = scenebake::ClothJob {
+            input: Some(input.clone()),
+            output: dir.path().join("x.glb"),
+            self_contact: on,
+            self_thickness: Some(0.004),
+            ..scenebake::ClothJob::default()
+        };
+        let p = prepare_cloth(&job).unwrap();
+        let mut solver = make_solver(&p.model, &p.params).unwrap();
+        let sys = solver.system().clone();
+        let from = sys.gather(p.model.positions());
+        let mid = from.iter().map(|x| x.x).fold(f64::MIN, f64::max) * 0.5
+            + from.iter().map(|x| x.x).fold(f64::MAX, f64::min) * 0.5;
+        let to: Vec<DVec3> = from
+            .iter()
+            .map(|&x| {
+                if x.y > 0.005 && x.x < mid {
+                    x - DVec3::new(0.0, 0.02, 0.0)
+                } else {
+                    x
+                }
+            })
+            .collect();
+        let t = solver.free_path(&from, &to);
+        let at: Vec<DVec3> = from
+            .iter()
+            .zip(&to)
+            .map(|(a, b)| *a + (*b - *a) * t)
+            .collect();
+        let mut all = p.model.positions().to_vec();
+        sys.scatter(&at, &mut all);
+        let points: Vec<Vec3> = all.iter().map(|p| p.as_vec3()).collect();
+        (t, brute_self(&points, &p.model.mesh.triangles))
+    };
+    let (t, crossing) = moved(Switch::On);
+    assert!(t < 0.5 && crossing == 0, "{t}, {crossing} pairs crossing");
+    let (t, crossing) = moved(Switch::Off);
+    assert!(t == 1.0 && crossing > 0, "{t}, {crossing} pairs crossing");
+}

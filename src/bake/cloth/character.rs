@@ -330,33 +330,15 @@ pub fn bake_on_character(
 /// not), checked against the loops: the steered frames lie within the written loops, and the
 /// frames they are steered onto, one written span earlier, within the animation (in the warm-up
 /// loops, not the blend-in from the rest pose). By default a quarter of the written loops, or
-/// as many frames as the warm-up loops have where they have fewer; none with self-contact, which
-/// the steering would bypass.
+/// as many frames as the warm-up loops have where they have fewer.
 fn blended_frames(job: &ClothJob, fps: f64, frames_per_cycle: usize) -> Result<usize> {
     let written = job.cycles * frames_per_cycle;
     let warmup = job.warmup_cycles * frames_per_cycle;
-    // Steering moves the cloth without self-contact's checks: on the CesiumMan skirts it made
-    // the cloth cross itself in up to 167 pairs where it crossed itself nowhere else.
-    let self_contact = job.self_contact == Switch::On;
     let Some(seconds) = job.loop_blend else {
-        return Ok(if self_contact {
-            0
-        } else {
-            (written / 4).min(warmup)
-        });
+        return Ok((written / 4).min(warmup));
     };
     if seconds == 0.0 {
         return Ok(0);
-    }
-    if self_contact {
-        return Err(Error::param_value(
-            Param::LoopBlend,
-            text!(
-                format!("{seconds} s: steering the loop's end moves the cloth without "),
-                Param::SelfContact,
-                "'s checks, and can make it cross itself (leave it out, or give 0)"
-            ),
-        ));
     }
     let frames = ((seconds * fps).round() as usize).max(1);
     if frames > written {

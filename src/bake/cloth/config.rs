@@ -443,9 +443,9 @@ pub struct ClothJob {
     /// Seconds at the end of the written loops over which the solver steers the cloth onto its
     /// path one written span earlier (the last warm-up loop's), so the output loops without a
     /// jump where the motion itself does not settle into a loop; 0 writes the loops as they
-    /// fall. Each steered step is solved to the tolerance like any other and measured. Not with
-    /// --self-contact on (the steering would bypass its checks). [default: a quarter of the
-    /// written loops, as far as the warm-up loops reach; 0 with self-contact]
+    /// fall. Each steered step is solved to the tolerance like any other and measured; with
+    /// --self-contact on the cloth is steered only as far as it can go without passing through
+    /// itself. [default: a quarter of the written loops, as far as the warm-up loops reach]
     #[cfg_attr(
         feature = "cli",
         arg(long, value_name = "S", requires = "rig", help_heading = "Character")

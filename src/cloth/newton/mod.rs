@@ -610,6 +610,13 @@ impl StepSolver for NewtonSolver {
         }
     }
 
+    fn free_path(&mut self, from: &[DVec3], to: &[DVec3]) -> f64 {
+        match &mut self.self_contact {
+            Some(s) => s.free_fraction(from, to),
+            None => 1.0,
+        }
+    }
+
     fn set_time_step(&mut self, h: f64) {
         self.sys.params.time_step = h;
         if let Some(c) = &mut self.contact {

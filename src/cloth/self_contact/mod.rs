@@ -546,6 +546,15 @@ impl SelfContact {
         self.ready
     }
 
+    /// The fraction of the path from `a` to `b` (solver order) the cloth can move between steps
+    /// without any pair reaching its target distance, as [`SelfContact::prepare_path`] finds it;
+    /// the candidates are then left for the next step to find again.
+    pub fn free_fraction(&mut self, a: &[DVec3], b: &[DVec3]) -> f64 {
+        let toi = self.prepare_path(a, b);
+        self.ready = false;
+        toi
+    }
+
     /// Finds the candidate pairs of the path from `a` to `b` (solver order) and returns the
     /// fraction of it the cloth can move without any pair reaching its target distance (1: the
     /// whole path). [`SelfContact::energy`] is then exact anywhere on the path.
