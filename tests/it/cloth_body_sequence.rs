@@ -59,44 +59,9 @@ fn write_sequence(dir: &Path) -> PathBuf {
     dir.join("box%d.obj")
 }
 
-/// Writes `dir/NAME.obj`: one 0.4 m square sheet, 9 × 9 vertices, at each of the `heights`
-/// (m), one above the other over the box's top.
-fn write_layers(dir: &Path, name: &str, heights: &[f64]) -> PathBuf {
-    let n = 9;
-    let mut s = String::new();
-    for y in heights {
-        for j in 0..n {
-            for i in 0..n {
-                let (x, z) = (
-                    -0.2 + 0.4 * i as f64 / (n - 1) as f64,
-                    -0.2 + 0.4 * j as f64 / (n - 1) as f64,
-                );
-                s += &format!("v {x} {y} {z}\n");
-            }
-        }
-    }
-    for layer in 0..heights.len() {
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let a = layer * n * n + j * n + i + 1;
-                s += &format!(
-                    "f {a} {} {}\nf {a} {} {}\n",
-                    a + n,
-                    a + n + 1,
-                    a + n + 1,
-                    a + 1
-                );
-            }
-        }
-    }
-    let path = dir.join(format!("{name}.obj"));
-    std::fs::write(&path, s).unwrap();
-    path
-}
-
 /// A 0.4 m square sheet, 9 × 9 vertices, lying a thickness above the box's starting top.
 fn write_sheet(dir: &Path) -> PathBuf {
-    write_layers(dir, "sheet", &[THICKNESS])
+    common::write_layers(dir, "sheet", &[(THICKNESS, [0.0; 2])])
 }
 
 fn job(dir: &Path, pattern: PathBuf, output: &Path) -> ClothJob {
@@ -469,10 +434,10 @@ fn a_fast_box_lifts_a_fold_with_self_contact_every_step_converged_and_nothing_cr
     let job = ClothJob {
         collider: vec![scenebake::cloth::collide::ColliderSpec::mesh(floor)],
         // A fold lying on the box: two sheets, a thickness and 2.2 thicknesses above its top.
-        input: Some(write_layers(
+        input: Some(common::write_layers(
             dir.path(),
             "fold",
-            &[THICKNESS, 2.2 * THICKNESS],
+            &[(THICKNESS, [0.0; 2]), (2.2 * THICKNESS, [0.0; 2])],
         )),
         self_contact: scenebake::bake::cloth::Switch::On,
         ..job(dir.path(), dir.path().join("box%d.obj"), &out)
@@ -524,10 +489,10 @@ fn a_split_step_is_the_two_half_steps_taken_from_its_start() {
     let bake = |name: &str, substeps: usize, splits: usize| {
         let out = dir.path().join(format!("{name}.glb"));
         let job = ClothJob {
-            input: Some(write_layers(
+            input: Some(common::write_layers(
                 dir.path(),
                 "fold",
-                &[THICKNESS, 2.2 * THICKNESS],
+                &[(THICKNESS, [0.0; 2]), (2.2 * THICKNESS, [0.0; 2])],
             )),
             self_contact: scenebake::bake::cloth::Switch::On,
             substeps,

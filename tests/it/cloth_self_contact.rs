@@ -302,36 +302,12 @@ fn a_move_between_steps_stops_where_the_cloth_would_cross_itself() {
     use scenebake::glam::{DVec3, Vec3};
 
     let dir = tempfile::tempdir().unwrap();
-    let n = 9;
-    let mut obj = String::new();
     // The lower sheet's grid is offset from the upper's, so that crossings are not along edges.
-    for (y, shift) in [(0.0, 0.013), (0.01, 0.0)] {
-        for j in 0..n {
-            for i in 0..n {
-                let (x, z) = (
-                    0.4 * i as f64 / (n - 1) as f64 + shift,
-                    0.4 * j as f64 / (n - 1) as f64 + 1.6 * shift,
-                );
-                obj += &format!("v {x} {y} {z}\n");
-            }
-        }
-    }
-    for layer in 0..2 {
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let a = layer * n * n + j * n + i + 1;
-                obj += &format!(
-                    "f {a} {} {}\nf {a} {} {}\n",
-                    a + n,
-                    a + n + 1,
-                    a + n + 1,
-                    a + 1
-                );
-            }
-        }
-    }
-    let input = dir.path().join("two.obj");
-    std::fs::write(&input, obj).unwrap();
+    let input = common::write_layers(
+        dir.path(),
+        "two",
+        &[(0.0, [0.013, 0.0208]), (0.01, [0.0, 0.0])],
+    );
     let moved = |on: Switch| {
         let job = scenebake::ClothJob {
             input: Some(input.clone()),

@@ -212,8 +212,7 @@ pub fn bake_on_character(
     let blend = (loop_blend > 0).then(|| LoopBlend {
         frames: loop_blend,
         gap: seam_between(
-            sim.cache
-                .frame(total - loop_blend - (total - first_written)),
+            sim.cache.frame(first_written - loop_blend),
             sim.cache.frame(total - loop_blend),
         ),
     });

@@ -91,3 +91,39 @@ pub fn names_in(dir: &Path) -> Vec<String> {
     names.sort();
     names
 }
+
+/// Writes `dir/NAME.obj`: a 0.4 m square sheet, 9 × 9 vertices, centred on the y axis, for each
+/// `(height, [dx, dz])` of `layers`, one above the other, each at that height (m) and shifted
+/// by that offset in x and z (m).
+pub fn write_layers(dir: &Path, name: &str, layers: &[(f64, [f64; 2])]) -> PathBuf {
+    let n = 9;
+    let mut s = String::new();
+    for &(y, [dx, dz]) in layers {
+        for j in 0..n {
+            for i in 0..n {
+                let (x, z) = (
+                    -0.2 + 0.4 * i as f64 / (n - 1) as f64 + dx,
+                    -0.2 + 0.4 * j as f64 / (n - 1) as f64 + dz,
+                );
+                s += &format!("v {x} {y} {z}\n");
+            }
+        }
+    }
+    for layer in 0..layers.len() {
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = layer * n * n + j * n + i + 1;
+                s += &format!(
+                    "f {a} {} {}\nf {a} {} {}\n",
+                    a + n,
+                    a + n + 1,
+                    a + n + 1,
+                    a + 1
+                );
+            }
+        }
+    }
+    let path = dir.join(format!("{name}.obj"));
+    std::fs::write(&path, s).unwrap();
+    path
+}
