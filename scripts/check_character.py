@@ -2,12 +2,15 @@
 """Checks a garment baked on a character (`scenebake cloth --rig`) from the file alone.
 
     python3 scripts/check_character.py FILE.glb --garment NAME --body NAME [NAME...] --rest GARMENT.obj
-        --units M --pin X0,Y0,Z0,X1,Y1,Z1 [--thickness M] [--json OUT]
+        --units M --pin X0,Y0,Z0,X1,Y1,Z1 [--thickness M] [--exclude-joint NODE...] [--json OUT]
 
 Everything is evaluated by scripts/blender/gltf_eval.py (plain numpy, not scenebake's code):
 the character's skinned body and the garment's morph cache are played from the file's first
 animation at every baked frame (asset.extras.scenebake: fps and frame range). Lengths are
-converted to metres with --units (metres per document unit). Checked, printing each figure:
+converted to metres with --units (metres per document unit). --exclude-joint leaves out of the
+body what the bake's `--body-exclude` with a joint left out of its collider: every triangle with
+a corner that carries more than half its skin weight (the file's JOINTS_n/WEIGHTS_n) on that
+node or the nodes below it. Checked, printing each figure:
 
 - pins ride the body: each pinned garment vertex (rest position inside the --pin box of the rest
   OBJ, metres) keeps its distance from the body's surface: at every frame it differs from frame
@@ -120,6 +123,9 @@ def main():
     ap.add_argument("--thickness", type=float, default=0.0)
     ap.add_argument("--max-strain", type=float, default=STRAIN_LIMIT,
                     help="largest edge strain accepted (default 0.10)")
+    ap.add_argument("--exclude-joint", nargs="+", default=[],
+                    help="skin joints (names or #N) whose part of the body is left out, as the "
+                         "bake's --body-exclude leaves it out of the collider")
     ap.add_argument("--json")
     a = ap.parse_args()
 
@@ -146,12 +152,48 @@ def main():
     garment = mesh_node(a.garment)
     bodies = [mesh_node(name) for name in a.body]
 
+    def node_index(name):
+        if name.startswith("#"):
+            return int(name[1:])
+        found = [i for i, n in enumerate(nodes) if n.get("name") == name]
+        if not found:
+            sys.exit(f"check_character: no node named {name}")
+        return found[0]
+
+    below = set()
+    stack = [node_index(j) for j in a.exclude_joint]
+    while stack:
+        n = stack.pop()
+        below.add(n)
+        stack.extend(nodes[n].get("children", []))
+
+    def kept(b, tris):
+        """Body node b's triangles `tris` less those with a corner more than half on `below`."""
+        if not below or "skin" not in nodes[b]:
+            return tris
+        joints = g.doc["skins"][nodes[b]["skin"]]["joints"]
+        on = np.array([j in below for j in joints])
+        part, total = [], []
+        for prim in g.doc["meshes"][nodes[b]["mesh"]]["primitives"]:
+            sets = [k for k in prim["attributes"] if k.startswith("JOINTS_")]
+            n = len(g.accessor(prim["attributes"]["POSITION"]))
+            pp, tt = np.zeros(n), np.zeros(n)
+            for js in sets:
+                J = g.accessor(prim["attributes"][js]).astype(np.int64)
+                W = g.accessor(prim["attributes"]["WEIGHTS_" + js.split("_")[1]])
+                pp += (W * on[J]).sum(axis=1)
+                tt += W.sum(axis=1)
+            part.append(pp)
+            total.append(tt)
+        held = np.concatenate(part) > 0.5 * np.concatenate(total)
+        return tris[~held[tris].any(axis=1)]
+
     def body_at(t):
         pos, tris, base = [], [], 0
         for b in bodies:
             p, tr = g.evaluate(b, 0, t)
             pos.append(p)
-            tris.append(tr + base)
+            tris.append(kept(b, tr) + base)
             base += len(p)
         return np.concatenate(pos), np.concatenate(tris)
 

@@ -495,9 +495,10 @@ fn skinned_frames(
 
 /// The body meshes less what `exclude` names: a body mesh (a mesh name, or its node as `NAME`,
 /// `#N` or Blender's `Node_N`), or a joint of a body's skin, which leaves out the triangles of
-/// that body whose three corners each carry more than half their skin weight on the joint and
-/// the joints below it (a hand of a character made as one mesh; a body left with no triangle
-/// is left out whole). A name that is neither is an error listing the body meshes.
+/// that body with any corner carrying more than half its skin weight on the joint and the joints
+/// below it (a hand of a character made as one mesh; the triangles across the joint's crease
+/// go too, as they swing partly with the part; a body left with no triangle is left out whole).
+/// A name that is neither is an error listing the body meshes.
 fn exclude_bodies(
     doc: &RigDocument,
     skeleton: &Skeleton,
@@ -523,7 +524,7 @@ fn exclude_bodies(
                 found = true;
                 let held = b.weight_on(|j| below[j]);
                 b.triangles
-                    .retain(|t| !t.iter().all(|&v| held[v as usize] > 0.5));
+                    .retain(|t| !t.iter().any(|&v| held[v as usize] > 0.5));
                 *d |= b.triangles.is_empty();
             }
         }

@@ -473,8 +473,9 @@ pub struct ClothJob {
     pub body_collider: Switch,
     /// Body meshes the garment ignores (repeatable; node or mesh names, or `#N` node indices):
     /// they neither collide with it nor carry its pins, e.g. hands that hang through a skirt. A
-    /// joint of the skin leaves out the part of the body it and the joints below it move (each
-    /// corner more than half), e.g. the forearms of a character made as one mesh.
+    /// joint of the skin leaves out the part of the body it and the joints below it move (every
+    /// triangle with a corner more than half theirs), e.g. the forearms of a character made as
+    /// one mesh.
     #[serde(deserialize_with = "de::string_list")]
     #[cfg_attr(
         feature = "cli",
