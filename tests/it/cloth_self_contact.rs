@@ -210,38 +210,7 @@ fn drop_on_ridge(self_contact: &str) -> Vec<usize> {
         writeln!(f, "f {} {} {}", t[0], t[1], t[2]).unwrap();
     }
     drop(f);
-    let (collider, frames) = (format!("mesh:{}", ridge.display()), FRAMES.to_string());
-    let (out, r) = bake(
-        dir.path(),
-        &sheet,
-        "",
-        &[
-            "--collider",
-            &collider,
-            "--collider",
-            "plane:0,1,0,0",
-            "--frames",
-            &frames,
-            "--self-contact",
-            self_contact,
-        ],
-    );
-    let (tris, at) = played(&out, &r, FRAMES);
-    let body: Vec<scenebake::glam::Vec3> = corners
-        .iter()
-        .map(|c| scenebake::glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
-        .collect();
-    let body_tris: Vec<[u32; 3]> = faces.iter().map(|t| t.map(|v| v - 1)).collect();
-    let file: Vec<usize> = at
-        .iter()
-        .map(|p| brute_between(p, &tris, &body, &body_tris))
-        .collect();
-    assert_eq!(
-        file,
-        common::counts_of(&r["quality"]["body_crossings"]),
-        "the report counts what the file holds"
-    );
-    file
+    drop_over(&sheet, &[], &ridge, FRAMES, self_contact).with_body
 }
 
 #[test]
@@ -349,41 +318,48 @@ fn a_move_between_steps_stops_where_the_cloth_would_cross_itself() {
     assert!(t == 1.0 && crossing > 0, "{t}, {crossing} pairs crossing");
 }
 
-/// The shipped 1 m sheet (3.3 cm cells) dropped over the shipped thin ring (a closed torus
-/// standing on the ground, its tube 16 mm across): the crossing pairs of every written frame of
-/// the sheet with itself and with the ring, by an exact test on the file (the ring read from
-/// its OBJ), which the report's counts must match.
-fn drop_over_ring(self_contact: &str) -> (Vec<usize>, Vec<usize>, serde_json::Value) {
-    const FRAMES: usize = 20;
+/// A sheet dropped over a closed mesh collider (an OBJ of `v` and `f` lines) on the ground.
+struct Dropped {
+    /// The crossing pairs of every written frame of the sheet with itself and with the
+    /// collider, by an exact test on the file (the collider read from its OBJ); the report's
+    /// counts are checked to be these.
+    with_itself: Vec<usize>,
+    with_body: Vec<usize>,
+    report: serde_json::Value,
+}
+
+/// Bakes `sheet` (placed by `place`, e.g. `--translate`) dropped over the collider `body` and
+/// the ground for `frames` frames; see [`Dropped`].
+fn drop_over(
+    sheet: &Path,
+    place: &[&str],
+    body: &Path,
+    frames: usize,
+    self_contact: &str,
+) -> Dropped {
     let dir = tempfile::tempdir().unwrap();
-    let ring = common::mesh_path("ring.obj");
-    let (collider, frames) = (format!("mesh:{}", ring.display()), FRAMES.to_string());
-    let (out, r) = bake(
-        dir.path(),
-        &common::mesh_path("plane_30x30.obj"),
-        "",
-        &[
-            "--translate",
-            "0,0.5,0",
-            "--collider",
-            &collider,
-            "--collider",
-            "plane:0,1,0,0",
-            "--frames",
-            &frames,
-            "--self-contact",
-            self_contact,
-        ],
-    );
-    let (tris, at) = played(&out, &r, FRAMES);
-    let text = std::fs::read_to_string(&ring).unwrap();
+    let (collider, count) = (format!("mesh:{}", body.display()), frames.to_string());
+    let mut args = place.to_vec();
+    args.extend([
+        "--collider",
+        &collider,
+        "--collider",
+        "plane:0,1,0,0",
+        "--frames",
+        &count,
+        "--self-contact",
+        self_contact,
+    ]);
+    let (out, r) = bake(dir.path(), sheet, "", &args);
+    let (tris, at) = played(&out, &r, frames);
+    let text = std::fs::read_to_string(body).unwrap();
     let numbers = |l: &str| -> Vec<f64> {
         l.split_whitespace()
             .skip(1)
             .map(|x| x.parse().unwrap())
             .collect()
     };
-    let body: Vec<scenebake::glam::Vec3> = text
+    let points: Vec<scenebake::glam::Vec3> = text
         .lines()
         .filter(|l| l.starts_with("v "))
         .map(|l| {
@@ -399,27 +375,47 @@ fn drop_over_ring(self_contact: &str) -> (Vec<usize>, Vec<usize>, serde_json::Va
             [f[0] as u32 - 1, f[1] as u32 - 1, f[2] as u32 - 1]
         })
         .collect();
-    let with_ring: Vec<usize> = at
+    let with_body: Vec<usize> = at
         .iter()
-        .map(|p| brute_between(p, &tris, &body, &body_tris))
+        .map(|p| brute_between(p, &tris, &points, &body_tris))
         .collect();
     let with_itself: Vec<usize> = at.iter().map(|p| brute_self(p, &tris)).collect();
-    assert_eq!(
-        with_ring,
-        common::counts_of(&r["quality"]["body_crossings"]),
-        "the report counts what the file holds"
-    );
-    assert_eq!(
+    for (file, key) in [
+        (&with_body, "body_crossings"),
+        (&with_itself, "self_crossings"),
+    ] {
+        assert_eq!(
+            *file,
+            common::counts_of(&r["quality"][key]),
+            "the report counts what the file holds"
+        );
+    }
+    Dropped {
         with_itself,
-        common::counts_of(&r["quality"]["self_crossings"]),
-        "the report counts what the file holds"
-    );
-    (with_itself, with_ring, r)
+        with_body,
+        report: r,
+    }
+}
+
+/// The shipped 1 m sheet (3.3 cm cells) dropped over the shipped thin ring (a closed torus
+/// standing on the ground, its tube 16 mm across), 20 frames.
+fn drop_over_ring(self_contact: &str) -> Dropped {
+    drop_over(
+        &common::mesh_path("plane_30x30.obj"),
+        &["--translate", "0,0.5,0"],
+        &common::mesh_path("ring.obj"),
+        20,
+        self_contact,
+    )
 }
 
 #[test]
 fn with_self_contact_a_sheet_over_a_thin_ring_crosses_neither_itself_nor_the_ring() {
-    let (with_itself, with_ring, r) = drop_over_ring("on");
+    let Dropped {
+        with_itself,
+        with_body: with_ring,
+        report: r,
+    } = drop_over_ring("on");
     assert!(
         with_itself.iter().chain(&with_ring).all(|&n| n == 0),
         "with itself {with_itself:?}, with the ring {with_ring:?}"
@@ -430,7 +426,11 @@ fn with_self_contact_a_sheet_over_a_thin_ring_crosses_neither_itself_nor_the_rin
 
 #[test]
 fn kept_off_by_its_particles_alone_the_sheet_falls_through_the_ring_and_itself() {
-    let (with_itself, with_ring, _) = drop_over_ring("off");
+    let Dropped {
+        with_itself,
+        with_body: with_ring,
+        ..
+    } = drop_over_ring("off");
     assert!(
         with_itself.iter().any(|&n| n > 0) && with_ring.iter().any(|&n| n > 0),
         "with itself {with_itself:?}, with the ring {with_ring:?}"
