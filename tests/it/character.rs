@@ -661,7 +661,7 @@ fn the_pins_own_stretch_is_reported_and_warned_past_the_limit() {
 #[test]
 fn a_skirt_walks_on_cesium_man_converged_and_intersection_free() {
     use crate::cloth_pointcache::read_pc2;
-    use common::crossing::brute_self;
+    use common::crossing::{brute_self, obj_soup};
 
     let dir = tempfile::tempdir().unwrap();
     let skirt = dir.path().join("skirt.obj");
@@ -705,19 +705,7 @@ fn a_skirt_walks_on_cesium_man_converged_and_intersection_free() {
         q.body_crossings
     );
     // The skirt's own crossings, counted anew on what the point cache holds.
-    let triangles: Vec<[u32; 3]> = std::fs::read_to_string(&skirt)
-        .unwrap()
-        .lines()
-        .filter(|l| l.starts_with("f "))
-        .map(|l| {
-            let v: Vec<u32> = l
-                .split_whitespace()
-                .skip(1)
-                .map(|c| c.split('/').next().unwrap().parse::<u32>().unwrap() - 1)
-                .collect();
-            [v[0], v[1], v[2]]
-        })
-        .collect();
+    let (_, triangles) = obj_soup(&skirt);
     let frames = read_pc2(&pc2).samples;
     let written = r.character.as_ref().unwrap().frames_per_cycle + 1;
     assert_eq!(frames.len(), written);

@@ -558,6 +558,19 @@ fn box_and_lid_obj(bottom: f64) -> String {
     box_obj(0.0, false) + &lid
 }
 
+/// Asserts that no frame of the lid bakes (50 fps) released anything, `released` per frame,
+/// while the gap between lid and box was wider than the sheet's two layers: frame f's steps end
+/// by (f + 1)/fps, and the gap then is the lid's bottom over the box's top (the sheet's layers
+/// need 2 × THICKNESS / 2 of it).
+fn none_released_while_open(released: &[usize]) {
+    for (f, &n) in released.iter().enumerate() {
+        let gap = lid_at((f + 1) as f64 / 50.0);
+        if gap > 1.5 * THICKNESS {
+            assert_eq!(n, 0, "frame {}: released {n} with a {gap} m gap", f + 1);
+        }
+    }
+}
+
 /// Writes `dir/lid%d.obj`: the box and the lid closing on it, frames `0..FRAMES`.
 fn write_lid_sequence(dir: &Path) {
     for i in 0..FRAMES {
@@ -580,15 +593,7 @@ fn cloth_pinched_by_a_closing_body_is_released_counted_and_the_bake_finishes() {
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     assert!(out.exists());
     let pinched = &report.environment.as_ref().unwrap().pinched;
-    let fps = 50.0;
-    for (f, &n) in pinched.iter().enumerate() {
-        // Frame f's steps end by (f + 1)/fps; the gap then is the lid's bottom over the box's
-        // top (the sheet's layers need 2 × THICKNESS / 2 of it).
-        let gap = lid_at((f + 1) as f64 / fps);
-        if gap > 1.5 * THICKNESS {
-            assert_eq!(n, 0, "frame {}: released {n} with a {gap} m gap", f + 1);
-        }
-    }
+    none_released_while_open(pinched);
     assert!(
         pinched.iter().sum::<usize>() > 0,
         "the overlapping lid and box pinch the sheet: {pinched:?}"
@@ -623,12 +628,7 @@ fn a_body_closing_on_cloth_with_self_contact_releases_its_pinched_pairs() {
     let report = bake_cloth(&job, &mut |_, _| {}).unwrap();
     assert!(out.exists());
     let pairs = &report.environment.as_ref().unwrap().pinched_pairs;
-    for (f, &n) in pairs.iter().enumerate() {
-        let gap = lid_at((f + 1) as f64 / 50.0);
-        if gap > 1.5 * THICKNESS {
-            assert_eq!(n, 0, "frame {}: released {n} with a {gap} m gap", f + 1);
-        }
-    }
+    none_released_while_open(pairs);
     assert!(pairs.iter().sum::<usize>() > 0, "{pairs:?}");
     assert!(
         report

@@ -9,7 +9,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use common::cli::scenebake;
-use common::crossing::{brute_between, brute_self, cloth_triangles, weld};
+use common::crossing::{brute_between, brute_self, cloth_triangles, obj_soup, weld};
 use common::morph::load_morph;
 
 /// A 1 m square curtain of `n`×`n` cells standing on its lower edge 2 cm above the ground
@@ -352,29 +352,7 @@ fn drop_over(
     ]);
     let (out, r) = bake(dir.path(), sheet, "", &args);
     let (tris, at) = played(&out, &r, frames);
-    let text = std::fs::read_to_string(body).unwrap();
-    let numbers = |l: &str| -> Vec<f64> {
-        l.split_whitespace()
-            .skip(1)
-            .map(|x| x.parse().unwrap())
-            .collect()
-    };
-    let points: Vec<scenebake::glam::Vec3> = text
-        .lines()
-        .filter(|l| l.starts_with("v "))
-        .map(|l| {
-            let v = numbers(l);
-            scenebake::glam::Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32)
-        })
-        .collect();
-    let body_tris: Vec<[u32; 3]> = text
-        .lines()
-        .filter(|l| l.starts_with("f "))
-        .map(|l| {
-            let f = numbers(l);
-            [f[0] as u32 - 1, f[1] as u32 - 1, f[2] as u32 - 1]
-        })
-        .collect();
+    let (points, body_tris) = obj_soup(body);
     let with_body: Vec<usize> = at
         .iter()
         .map(|p| brute_between(p, &tris, &points, &body_tris))

@@ -462,16 +462,15 @@ impl SelfContact {
     }
 
     /// Leaves out, while they touch, the pairs of an obstacle and the cloth at `x` (solver order)
-    /// pressed to within [`PINCHED`] of their band's bottom, as [`TOUCHING`] pairs are; returns
-    /// how many. Called when a push stalls: where two parts of a body close on the cloth between
+    /// pressed to within [`PINCHED`] of their band's bottom, as [`TOUCHING`] pairs are, counting
+    /// them in [`SelfContact::pinched`]. Called when a push stalls: where two parts of a body close on the cloth between
     /// them (thighs passing each other through a skirt), the cloth cannot get out of the way,
     /// and each push took the body a tenth of the remaining gap further, until the matrix no
     /// longer factored (the CesiumMan mini skirt, a body vertex at 1e-8 of its band under a
     /// cloth triangle). Released, the body
     /// passes through the cloth there (the crossings are measured and reported), and the pair's
     /// layer grows back as it moves apart ([`SelfContact::end_step`]).
-    pub fn release_pinched(&mut self, x: &[DVec3]) -> usize {
-        let mut released = 0;
+    pub fn release_pinched(&mut self, x: &[DVec3]) {
         for k in 0..self.pairs.len() {
             let pair = self.pairs[k];
             if pair.layer == 0.0 || !pair.v.iter().any(|&v| self.is_obstacle(v as usize)) {
@@ -481,11 +480,9 @@ impl SelfContact {
             if d - 0.5 * pair.layer <= PINCHED * pair.layer {
                 self.thinned.insert(pair.key, 0.0);
                 self.pairs[k].layer = 0.0;
-                released += 1;
+                self.pinched += 1;
             }
         }
-        self.pinched += released;
-        released
     }
 
     /// Pairs released as pinched in this step ([`SelfContact::release_pinched`]).

@@ -8,6 +8,39 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 use robust::{orient3d, Coord3D};
 
+/// The `v` lines (in file order, as point caches hold them) and the triangles of the `f` lines
+/// (corners `v`, `v/vt` or `v/vt/vn`, 1-based) of a triangulated OBJ: a soup for the exact tests
+/// below, read without scenebake's loader.
+pub fn obj_soup(path: &Path) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut points = Vec::new();
+    let mut triangles = Vec::new();
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let v: Vec<f32> = words.take(3).map(|w| w.parse().unwrap()).collect();
+                points.push(Vec3::new(v[0], v[1], v[2]));
+            }
+            Some("f") => {
+                let f: Vec<u32> = words
+                    .map(|w| w.split('/').next().unwrap().parse::<u32>().unwrap() - 1)
+                    .collect();
+                assert_eq!(
+                    f.len(),
+                    3,
+                    "{}: a face of {} corners",
+                    path.display(),
+                    f.len()
+                );
+                triangles.push([f[0], f[1], f[2]]);
+            }
+            _ => {}
+        }
+    }
+    (points, triangles)
+}
+
 /// The welded triangles of a render surface: render vertices at bit-identical positions (UV
 /// seams) become one vertex, so adjacency is the cloth's own.
 pub fn weld(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
